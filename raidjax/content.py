@@ -1,0 +1,238 @@
+"""Building and validating content (``Params``): field ranges, defaults and ``make_params``.
+
+Validation happens here, on the host, when parameters are built: out-of-range, NaN, wrongly
+shaped or unknown content raises ``ValueError`` naming the field, the value and the allowed
+range. The jitted step never clips content silently.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import fields
+
+import jax.numpy as jnp
+import numpy as np
+
+from raidjax import catalogue
+from raidjax.types import N_SLOTS, EnvConfig, Params, Skills, Stats
+
+# name: (kind, player range, boss range, player default, boss default).
+# kind "int" values must be whole numbers. Neutral values reproduce the reference game.
+STAT_SPECS: dict[str, tuple] = {
+    "max_hp": ("int", (0, 1000), (0, 10000), 100, 1000),
+    "hp_regen": ("float", (0, 100), (0, 100), 0.0, 0.0),
+    "max_mana": ("int", (0, 100), (0, 100), 100, 100),
+    "mana_regen": ("float", (0, 100), (0, 100), 1.0, 1.0),
+    "spell_power": ("int", (0, 100), (0, 100), 100, 50),
+    "move_speed": ("float", (1, 2), (0, 20), 1.0, 6.0),
+    "attack_power": ("int", (0, 100), (0, 100), 0, 0),
+    "attack_range": ("int", (1, 10), (1, 10), 1, 1),
+    "attack_speed": ("float", (1, 2), (1, 2), 1.0, 1.0),
+    "armor": ("int", (0, 100), (0, 100), 0, 0),
+    "evasion": ("int", (0, 100), (0, 100), 0, 0),
+    "parry": ("float", (0, 100), (0, 100), 0.0, 0.0),
+    "strength": ("int", (1, 100), (1, 100), 50, 50),
+    "agility": ("int", (1, 100), (1, 100), 50, 50),
+    "intelligence": ("int", (1, 100), (1, 100), 50, 50),
+    "critical": ("int", (0, 100), (0, 100), 0, 0),
+    "crit_multiplier": ("float", (1, 5), (1, 5), 1.5, 1.5),
+    "haste": ("int", (0, 100), (0, 100), 0, 0),
+    "versatility": ("int", (0, 100), (0, 100), 0, 0),
+    "mastery": ("int", (0, 100), (0, 100), 0, 0),
+    "back_attack_multiplier": ("float", (1, 3), (1, 3), 1.2, 1.0),
+    "radius": ("float", (0.1, 3), (0.1, 3), 0.5, 1.5),
+}
+
+# name: (kind, player range, boss range). Defaults live in catalogue.BASE_SKILL.
+SKILL_SPECS: dict[str, tuple] = {
+    "in_use": ("bool", (0, 1), (0, 1)),
+    "trigger": ("int", (0, 1), (0, 1)),
+    "school": ("int", (0, 9), (0, 9)),
+    "hit_type": ("int", (0, 1), (0, 1)),
+    "target_type": ("int", (0, 2), (0, 2)),
+    "projectile_speed": ("float", (0, 50), (0, 50)),
+    "affect_ally": ("bool", (0, 1), (0, 1)),
+    "affect_enemy": ("bool", (0, 1), (0, 1)),
+    "cool_time": ("float", (0, 60), (0, 60)),
+    "cast_time": ("float", (0, 2), (0, 10)),
+    "cost": ("float", (0, 100), (0, 100)),
+    "range": ("float", (1, 20), (1, 20)),
+    "charge": ("int", (1, 3), (1, 3)),
+    "cast_on_moving": ("bool", (0, 1), (0, 1)),
+    "cast_on_casting": ("bool", (0, 1), (0, 1)),
+    "cast_on_channeling": ("bool", (0, 1), (0, 1)),
+    "coefficient": ("float", (0, 2), (0, 2)),
+    "projectile_radius": ("float", (0.05, 5), (0.05, 5)),
+    "hit_count": ("int", (1, 8), (1, 8)),
+    "area_offset": ("float", (0, 1), (0, 1)),
+}
+_INT_KINDS = ("int", "bool")
+assert set(STAT_SPECS) == {f.name for f in fields(Stats)}
+assert set(SKILL_SPECS) == {f.name for f in fields(Skills)}
+
+REFERENCE_PLAYERS = ("mage", "mage", "mage")
+
+
+def _unit_dicts(cls_name: str, table: Mapping, team: int) -> tuple[dict, list[dict]]:
+    if cls_name not in table:
+        what = "player class" if team == 0 else "boss"
+        raise ValueError(f"unknown {what} preset {cls_name!r}; known: {sorted(table)}")
+    preset = table[cls_name]
+    col = 3 if team == 0 else 4
+    stats = {k: spec[col] for k, spec in STAT_SPECS.items()}
+    stats.update(preset["stats"])
+    slots = [catalogue.skill_fields(s) for s in preset["skills"]]
+    while len(slots) < N_SLOTS:  # unused slots: valid values, masked out
+        slots.append({**catalogue.BASE_SKILL, "in_use": 0})
+    return stats, slots
+
+
+def _apply_override(key: str, value, stats: dict, slots: list[dict], who: str) -> None:
+    if key in STAT_SPECS:
+        stats[key] = value
+        return
+    head, _, field = key.partition(".")
+    if head.startswith("skill") and head[5:].isdigit() and field in SKILL_SPECS:
+        k = int(head[5:])
+        if not 1 <= k <= N_SLOTS:
+            raise ValueError(f"{who}: override {key!r}: skill slot {k} not in [1, {N_SLOTS}]")
+        slots[k - 1][field] = value
+        return
+    if isinstance(value, str) and head.startswith("skill") and not field:
+        k = int(head[5:]) if head[5:].isdigit() else 0
+        if 1 <= k <= N_SLOTS:
+            slots[k - 1] = catalogue.skill_fields(value)
+            return
+    raise ValueError(
+        f"{who}: unknown field {key!r}; use a stat ({', '.join(STAT_SPECS)}), "
+        f"'skill<k>.<param>' with param in ({', '.join(SKILL_SPECS)}), or 'skill<k>' = a skill preset"
+    )
+
+
+def make_params(
+    *,
+    players: str | Sequence[str] = REFERENCE_PLAYERS,
+    boss: str = "dragon",
+    skill_range: float | None = None,
+    player_overrides: Sequence[Mapping] | None = None,
+    boss_overrides: Mapping | None = None,
+    config: EnvConfig | None = None,
+    **overrides,
+) -> Params:
+    """Build and validate the content of one arena.
+
+    Args:
+        players: class preset names, one per player (or one name for a team of 3); see
+            ``catalogue.CLASSES``. Default: three reference mages.
+        boss: boss preset name (``catalogue.BOSSES``).
+        skill_range: if given, the range of every player's skill slot 1 (the experiment variable).
+        player_overrides: one mapping per player of field overrides (see ``overrides``).
+        boss_overrides: field overrides for the boss.
+        config: static ``EnvConfig`` (sub-steps, pool sizes, episode length).
+        **overrides: applied to every player: a stat name (``armor=50``), a skill parameter of
+            slot k as ``**{"skill1.cool_time": 1.0}``, or ``skill2="heal"`` to put a skill preset in a slot.
+
+    Returns:
+        ``Params`` with stats ``[U]`` and skills ``[U, 3]``, ``U = n_players + 1``.
+
+    Raises:
+        ValueError: unknown preset or field, or a value that is NaN, not a whole number where
+            one is required, or outside its allowed range (the message names all three).
+    """
+    names = [players] if isinstance(players, str) else list(players)
+    if isinstance(players, str):
+        names = names * 3
+    if not 1 <= len(names) <= 8:
+        raise ValueError(f"players: {len(names)} players given; allowed range [1, 8]")
+    if player_overrides is not None and len(player_overrides) != len(names):
+        raise ValueError(f"player_overrides: {len(player_overrides)} mappings for {len(names)} players")
+    units = []
+    for i, name in enumerate(names):
+        stats, slots = _unit_dicts(name, catalogue.CLASSES, 0)
+        if skill_range is not None:
+            slots[0]["range"] = skill_range
+        for key, value in overrides.items():
+            _apply_override(key, value, stats, slots, "make_params")
+        for key, value in (player_overrides[i] if player_overrides else {}).items():
+            _apply_override(key, value, stats, slots, f"player_overrides[{i}]")
+        units.append((stats, slots))
+    stats, slots = _unit_dicts(boss, catalogue.BOSSES, 1)
+    for key, value in (boss_overrides or {}).items():
+        _apply_override(key, value, stats, slots, "boss_overrides")
+    units.append((stats, slots))
+
+    stat_arrays = {k: np.array([u[0][k] for u in units], dtype=np.float64) for k in STAT_SPECS}
+    skill_arrays = {
+        k: np.array([[s[k] for s in u[1]] for u in units], dtype=np.float64) for k in SKILL_SPECS
+    }
+    team = np.array([0] * len(names) + [1], dtype=np.int32)
+    params = Params(
+        stats=Stats(**{k: jnp.asarray(v, jnp.float32) for k, v in stat_arrays.items()}),
+        skills=Skills(**{k: jnp.asarray(v, _dtype(SKILL_SPECS[k][0])) for k, v in skill_arrays.items()}),
+        team=jnp.asarray(team),
+        config=config or EnvConfig(),
+    )
+    validate_params(params, _raw=(stat_arrays, skill_arrays))
+    return params
+
+
+def _dtype(kind: str):
+    return jnp.int32 if kind in _INT_KINDS else jnp.float32
+
+
+def default_params() -> Params:
+    """The reference content (three mages with MagicMissile, range 5, against the Dragon).
+
+    Returns:
+        ``Params`` with ``U = 4`` units (stats ``[4]``, skills ``[4, 3]``).
+    """
+    return make_params()
+
+
+def _check(name: str, values: np.ndarray, kind: str, lo: float, hi: float, where: str) -> None:
+    bad = ~np.isfinite(values)
+    if bad.any():
+        raise ValueError(f"{name}: value {values[bad].flat[0]} at {where} is not finite; allowed range [{lo}, {hi}]")
+    out = (values < lo) | (values > hi)
+    if out.any():
+        raise ValueError(f"{name}: value {values[out].flat[0]:g} at {where} is outside the allowed range [{lo}, {hi}]")
+    if kind in _INT_KINDS and (values != np.round(values)).any():
+        v = values[values != np.round(values)].flat[0]
+        raise ValueError(f"{name}: value {v:g} at {where} must be a whole number in [{lo}, {hi}]")
+
+
+def validate_params(params: Params, _raw: tuple | None = None) -> Params:
+    """Check every field of (possibly batched) concrete ``params``; return them unchanged.
+
+    Args:
+        params: ``Params`` with stats ``[..., U]``, skills ``[..., U, 3]``, ``team[..., U]``.
+
+    Raises:
+        ValueError: naming the field, the offending value and the allowed range, for NaN,
+            out-of-range, non-integral or wrongly shaped fields.
+    """
+    team = np.asarray(params.team)
+    if team.ndim < 1 or team.shape[-1] < 2:
+        raise ValueError(f"team: shape {team.shape}; expected [..., U] with U >= 2")
+    batch, u = team.shape[:-1], team.shape[-1]
+    expected_team = np.array([0] * (u - 1) + [1])
+    if not (team == expected_team).all():
+        raise ValueError(f"team: value {team.tolist()} must be {expected_team.tolist()} (players, then the boss)")
+    stat_raw, skill_raw = _raw or ({}, {})
+    for specs, group, shape, raw, axis in (
+        (STAT_SPECS, params.stats, (*batch, u), stat_raw, -1),
+        (SKILL_SPECS, params.skills, (*batch, u, N_SLOTS), skill_raw, -2),
+    ):
+        for name, spec in specs.items():
+            arr = raw[name] if name in raw else np.asarray(getattr(group, name), np.float64)
+            if arr.shape != shape:
+                raise ValueError(f"{name}: shape {arr.shape}; expected {shape}")
+            kind, prange, brange = spec[0], spec[1], spec[2]
+            players, boss = np.split(arr, [u - 1], axis=axis)
+            _check(name, players, kind, *prange, "a player")
+            _check(name, boss, kind, *brange, "the boss")
+    skills = params.skills
+    in_use = np.asarray(skills.in_use)
+    if not in_use[..., :, 0].all():
+        raise ValueError("in_use: value 0 in skill slot 1; every unit needs a skill in slot 1")
+    return params

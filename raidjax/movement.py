@@ -1,0 +1,154 @@
+"""Movement of units within one sub-step: player actions, the scripted heuristic, the boss's chase.
+
+All functions act on one arena (unbatched); ``U`` units, the boss last.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from raidjax.types import (
+    ACTION_HEURISTIC, BACKWARD, FORWARD, ROTATE_LEFT, ROTATE_RIGHT, STRAFE_LEFT, STRAFE_RIGHT,
+    Params, State,
+)
+
+TICK = 0.02  # physics tick of the reference build (s)
+DECISION = 0.1  # decision period (s)
+HALF_ARENA = 12.25  # walls at x, y = +-HALF_ARENA
+DRAG = 0.92  # velocity factor per tick
+TURN_RATE = jnp.deg2rad(200.0)  # rad/s
+STRAFE_FACTOR = 0.75
+BOSS_STOP_DISTANCE = 1.6  # the boss stops chasing this close to its target
+MOVING_SPEED = 0.5  # a unit displaced faster than this (units/s) counts as moving
+HEURISTIC_SPEED = 5.0  # PT-HR moves at 5 x move speed units/s
+HEURISTIC_EASE_PER_TICK = 0.02  # PT-HR closes 2 % of the gap to its circling spot per tick
+HEURISTIC_DEFAULT_DISTANCE = 10.0
+
+
+def heading_vec(angle: jnp.ndarray) -> jnp.ndarray:
+    """Unit vectors ``float32[..., 2]`` of heading angles ``float32[...]`` (0 = +x, CCW)."""
+    return jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=-1)
+
+
+def impulse_integrals(n_ticks: int) -> tuple[float, float, float]:
+    """Closed-form drag integration over ``n_ticks`` ticks of ``v <- DRAG (v + a); p <- p + v dt``.
+
+    Returns:
+        ``(dn, s, c0, ca)`` such that ``v_n = dn v0 + s a`` and ``p_n = p0 + c0 v0 + ca a``.
+    """
+    d = DRAG
+    s = d * (1 - d**n_ticks) / (1 - d)  # sum_{k=1..n} d^k
+    c0 = TICK * s
+    ca = TICK * d / (1 - d) * (n_ticks - s)
+    return d**n_ticks, s, c0, ca
+
+
+def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) -> State:
+    """Apply ``actions: int32[P]`` for ``dt`` seconds to the players (the boss is untouched).
+
+    Learner actions use the velocity-impulse/drag model; ``ACTION_HEURISTIC`` moves the
+    player by setting its position (SPEC §9). Dead players do not move.
+    """
+    n_players = actions.shape[0]
+    n_ticks = round(dt / TICK)
+    dn, s, c0, ca = impulse_integrals(n_ticks)
+    pos, vel, heading = state.pos[:n_players], state.vel[:n_players], state.heading[:n_players]
+    speed = params.stats.move_speed[:n_players]
+    alive = state.alive[:n_players]
+
+    # Learner actions: rotation first (a decision either rotates or translates, never both).
+    turn = jnp.where(actions == ROTATE_LEFT, 1.0, jnp.where(actions == ROTATE_RIGHT, -1.0, 0.0))
+    new_heading = heading + turn * TURN_RATE * dt
+    fwd = heading_vec(new_heading)
+    left = jnp.stack([-fwd[:, 1], fwd[:, 0]], axis=-1)
+    thrust = (
+        (actions == FORWARD)[:, None] * fwd
+        - (actions == BACKWARD)[:, None] * fwd
+        + STRAFE_FACTOR * (actions == STRAFE_LEFT)[:, None] * left
+        - STRAFE_FACTOR * (actions == STRAFE_RIGHT)[:, None] * left
+    ) * speed[:, None]
+    learner_pos = pos + c0 * vel + ca * thrust
+    learner_vel = dn * vel + s * thrust
+
+    # Scripted heuristic (PT-HR), as the reference build runs it (docs/GAME.md): approach at
+    # 5 x move speed to the preferred distance R; inside R, ease towards a point on the circle of
+    # radius R around the boss that turns at move-speed rad/s (each player with its own random
+    # phase), while retreating at 5 x move speed. It stands still while casting.
+    boss = state.pos[-1]
+    to_boss = boss - pos
+    dist = jnp.linalg.norm(to_boss, axis=-1)
+    unit = to_boss / jnp.maximum(dist, 1e-6)[:, None]
+    preferred = heuristic_distance(state, params)[:n_players]
+    step = HEURISTIC_SPEED * speed * dt
+    theta = speed * state.clock + state.orbit_phase[:n_players]
+    cw = jnp.stack([jnp.cos(theta), jnp.sin(theta)], axis=-1)
+    ccw = jnp.stack([jnp.sin(theta), jnp.cos(theta)], axis=-1)
+    spot = boss - preferred[:, None] * jnp.where(state.orbit_sign[:n_players, None] > 0, cw, ccw)
+    ease = 1.0 - (1.0 - HEURISTIC_EASE_PER_TICK) ** n_ticks
+    orbit_pos = pos + ease * (spot - pos) - step[:, None] * unit
+    approach_pos = pos + unit * jnp.minimum(step, dist - preferred)[:, None]
+    h_pos = jnp.where((dist > preferred)[:, None], approach_pos, orbit_pos)
+    h_pos = jnp.where(jnp.any(state.casting[:n_players], axis=-1)[:, None], pos, h_pos)
+    h_heading = jnp.arctan2(boss[1] - h_pos[:, 1], boss[0] - h_pos[:, 0])
+
+    scripted = actions == ACTION_HEURISTIC
+    new_pos = jnp.where(scripted[:, None], h_pos, learner_pos)
+    new_vel = jnp.where(scripted[:, None], 0.0, learner_vel)
+    new_heading = jnp.where(scripted, h_heading, new_heading)
+    keep = ~alive
+    new_pos = jnp.where(keep[:, None], pos, new_pos)
+    new_vel = jnp.where(keep[:, None], 0.0, new_vel)
+    new_heading = jnp.where(keep, heading, new_heading)
+    return state.replace(
+        pos=state.pos.at[:n_players].set(new_pos),
+        vel=state.vel.at[:n_players].set(new_vel),
+        heading=state.heading.at[:n_players].set(new_heading),
+    )
+
+
+def heuristic_distance(state: State, params: Params) -> jnp.ndarray:
+    """PT-HR's preferred distance ``float32[U]``: the largest range of a charged skill in use (10 if none)."""
+    ready = (params.skills.in_use > 0) & (state.charges > 0)
+    best = jnp.max(jnp.where(ready, params.skills.range, -1.0), axis=-1)
+    return jnp.where(best > 0, best, HEURISTIC_DEFAULT_DISTANCE)
+
+
+def nearest_alive_player(state: State) -> jnp.ndarray:
+    """Index ``int32[]`` of the alive player nearest the boss (0 if none is alive)."""
+    d = jnp.linalg.norm(state.pos[:-1] - state.pos[-1], axis=-1)
+    return jnp.argmin(jnp.where(state.alive[:-1], d, jnp.inf)).astype(jnp.int32)
+
+
+def move_boss(state: State, params: Params, dt: float) -> State:
+    """Re-target (if the target died), chase at ``move_speed`` unless casting or close, face the target."""
+    b = state.pos.shape[0] - 1
+    target = state.target[b]
+    target = jnp.where(state.alive[target], target, nearest_alive_player(state))
+    to_t = state.pos[target] - state.pos[b]
+    dist = jnp.linalg.norm(to_t)
+    unit = to_t / jnp.maximum(dist, 1e-6)
+    casting = jnp.any(state.casting[b])
+    may_move = (dist >= BOSS_STOP_DISTANCE) & ~casting & state.alive[b] & jnp.any(state.alive[:b])
+    step = jnp.minimum(params.stats.move_speed[b] * dt, jnp.maximum(dist - BOSS_STOP_DISTANCE, 0.0))
+    new_pos = state.pos[b] + jnp.where(may_move, step, 0.0) * unit
+    facing = jnp.where(dist > 1e-6, jnp.arctan2(to_t[1], to_t[0]), state.heading[b])
+    facing = jnp.where(state.alive[b], facing, state.heading[b])
+    return state.replace(
+        pos=state.pos.at[b].set(new_pos),
+        heading=state.heading.at[b].set(facing),
+        target=state.target.at[b].set(target),
+    )
+
+
+def clamp_to_walls(state: State, params: Params) -> State:
+    """Keep every unit's disc inside the arena; zero the velocity component into a wall."""
+    lim = (HALF_ARENA - params.stats.radius)[:, None]
+    clamped = jnp.clip(state.pos, -lim, lim)
+    hit = clamped != state.pos
+    return state.replace(pos=clamped, vel=jnp.where(hit, 0.0, state.vel))
+
+
+def update_moving(state: State, old_pos: jnp.ndarray, dt: float) -> State:
+    """Set ``moving[U]``: displaced faster than ``MOVING_SPEED`` during the sub-step."""
+    speed = jnp.linalg.norm(state.pos - old_pos, axis=-1) / dt
+    return state.replace(moving=speed > MOVING_SPEED)

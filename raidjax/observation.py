@@ -1,0 +1,133 @@
+"""Per-player observations (SPEC §8): entity-structured, fixed shapes, with a flat view.
+
+Normalisation: positions and velocities / 20, cooldowns / 5, HP / max, range / 20,
+damage / 100, cast time / 5. Dead entities are zeros *and* masked out.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from raidjax.combat import haste_factor, skill_targets, usable_slot
+from raidjax.movement import HALF_ARENA
+from raidjax.types import ACTION_HEURISTIC, CAST_1, HIT_ATTACK, N_ACTIONS, TRIGGER_PASSIVE, Observation, Params, State
+
+POS_SCALE, COOL_SCALE, RANGE_SCALE, DAMAGE_SCALE, CAST_SCALE = 20.0, 5.0, 20.0, 100.0, 5.0
+
+
+def skill_damage(params: Params) -> jnp.ndarray:
+    """Base damage (or heal) ``float32[U, S]`` of every skill slot: coefficient x power."""
+    st, sk = params.stats, params.skills
+    power = jnp.where(sk.hit_type == HIT_ATTACK, st.attack_power[:, None], st.spell_power[:, None])
+    return sk.coefficient * power
+
+
+def action_mask(state: State, params: Params) -> jnp.ndarray:
+    """``bool[P, N_ACTIONS]``: which actions do something now. Dead players may only no-op."""
+    n_players = params.team.shape[0] - 1
+    alive = state.alive[:n_players]
+    _, valid = skill_targets(state, params)
+    casts = jnp.stack([usable_slot(state, params, valid, s) for s in range(state.casting.shape[1])], axis=-1)
+    casts = casts & (params.skills.trigger != TRIGGER_PASSIVE)
+    move = jnp.broadcast_to(alive[:, None], (n_players, CAST_1))
+    move = move.at[:, 0].set(True)  # no-op is always allowed
+    return jnp.concatenate([move, casts[:n_players]], axis=-1)
+
+
+def observe(state: State, params: Params) -> Observation:
+    """Build every player's observation.
+
+    Args:
+        state: one arena's ``State`` (``U = P + 1`` units).
+        params: its ``Params``.
+
+    Returns:
+        ``Observation`` with a leading player axis ``P`` (shapes in ``types.Observation``).
+    """
+    st, sk = params.stats, params.skills
+    n_players = params.team.shape[0] - 1
+    b = n_players
+    pos, vel = state.pos / POS_SCALE, state.vel / POS_SCALE
+    hp = state.hp / jnp.maximum(st.max_hp, 1.0)
+    mana = state.mana / jnp.maximum(st.max_mana, 1.0)
+    cast_time = sk.cast_time / haste_factor(params)
+    progress = jnp.where(state.casting, 1.0 - state.cast_left / jnp.maximum(cast_time, 1e-6), 0.0)
+    skill_feats = jnp.concatenate(
+        [
+            state.recharge_left / COOL_SCALE,
+            state.charges / jnp.maximum(sk.charge, 1),
+            sk.range / RANGE_SCALE,
+            skill_damage(params) / DAMAGE_SCALE,
+            cast_time / CAST_SCALE,
+        ],
+        axis=-1,
+    ) * (sk.in_use > 0).repeat(5, axis=-1)  # [U, 5S]
+    heading = jnp.stack([jnp.cos(state.heading), jnp.sin(state.heading)], axis=-1)
+    unit_core = jnp.concatenate([pos, heading, vel, hp[:, None], mana[:, None]], axis=-1)  # [U, 8]
+    casting_any = jnp.any(state.casting, axis=-1)
+    self_features = jnp.concatenate(
+        [unit_core, casting_any[:, None], jnp.max(progress, axis=-1, keepdims=True), skill_feats], axis=-1
+    )[:n_players]
+    alive_p = state.alive[:n_players]
+    self_features = self_features * alive_p[:, None]
+
+    boss_core = jnp.concatenate(
+        [
+            pos[b] - pos[:n_players],
+            jnp.broadcast_to(heading[b], (n_players, 2)),
+            jnp.broadcast_to(hp[b], (n_players, 1)),
+            jnp.broadcast_to(state.recharge_left[b, :2] / COOL_SCALE, (n_players, 2)),
+            jnp.broadcast_to(casting_any[b], (n_players, 1)).astype(jnp.float32),
+            jnp.broadcast_to(jnp.max(progress[b]), (n_players, 1)),
+            (state.target[b] == jnp.arange(n_players))[:, None].astype(jnp.float32),
+            jnp.linalg.norm(pos[b] - pos[:n_players], axis=-1, keepdims=True),
+        ],
+        axis=-1,
+    )  # [P, 11]
+
+    # Teammates: every other player, in index order, relative position.
+    others = jnp.array([[j for j in range(n_players) if j != i] for i in range(n_players)], jnp.int32).reshape(
+        n_players, n_players - 1
+    )
+    mate_feats = jnp.concatenate(
+        [pos[others] - pos[:n_players, None], vel[others], hp[others][..., None], state.alive[others][..., None],
+         sk.range[others] / RANGE_SCALE,
+         skill_damage(params)[others] / DAMAGE_SCALE, cast_time[others] / CAST_SCALE, mana[others][..., None]],
+        axis=-1,
+    )
+    mate_mask = state.alive[others]
+    mate_feats = mate_feats * mate_mask[..., None]
+
+    # Hostile projectiles: the K nearest live ones owned by the boss's team.
+    p = state.projectiles
+    k = params.config.obs_projectiles
+    hostile = p.live & (params.team[p.owner] != 0)
+    rel = p.pos[None] - state.pos[:n_players, None]  # [P, M, 2]
+    d = jnp.linalg.norm(rel, axis=-1)
+    score = jnp.where(hostile[None], d, jnp.inf)
+    neg, idx = jax.lax.top_k(-score, k)
+    pmask = jnp.isfinite(neg) & alive_p[:, None]
+    speed = sk.projectile_speed[p.owner, p.slot]
+    pvel = jnp.where((p.kind == 1)[:, None], p.direction * speed[:, None], 0.0) / POS_SCALE
+    pfeat = jnp.concatenate(
+        [jnp.take_along_axis(rel, idx[..., None], axis=1) / POS_SCALE, pvel[idx],
+         jax.nn.one_hot(p.kind[idx], 3)[..., 1:]],
+        axis=-1,
+    ) * pmask[..., None]
+
+    walls = jnp.concatenate([HALF_ARENA - state.pos[:n_players], HALF_ARENA + state.pos[:n_players]], axis=-1) / POS_SCALE
+    return Observation(
+        self_features=self_features,
+        boss=boss_core * alive_p[:, None],
+        teammates=mate_feats,
+        teammate_mask=mate_mask & alive_p[:, None],
+        projectiles=pfeat,
+        projectile_mask=pmask,
+        walls=walls * alive_p[:, None],
+        action_mask=action_mask(state, params),
+        alive=alive_p,
+    )
+
+
+__all__ = ["observe", "action_mask", "skill_damage", "ACTION_HEURISTIC", "N_ACTIONS"]

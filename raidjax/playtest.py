@@ -1,0 +1,94 @@
+"""Batched playtesting: many games in parallel on-device, stopping once every game ended."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+
+from raidjax.env import reset, step
+from raidjax.types import LOSS, RUNNING, Params
+
+Policy = Callable  # policy(key, obs, state, params) -> int32[P]
+
+
+def broadcast_params(params: Params, n_games: int) -> Params:
+    """Give ``params`` a leading ``n_games`` axis.
+
+    Args:
+        params: unbatched (``team: [U]``), one content per game (``[n_games, U]``), or one content
+            per group of games (``[G, U]`` with ``n_games % G == 0``: game ``g`` uses content
+            ``g // (n_games // G)``).
+
+    Returns:
+        ``Params`` with every leaf's leading axis ``n_games``.
+    """
+    nb = params.team.ndim - 1
+    if nb == 0:
+        return jax.tree.map(lambda x: jnp.broadcast_to(x, (n_games,) + x.shape), params)
+    if nb != 1:
+        raise ValueError(f"params: {nb} batch axes; playtest takes at most one")
+    g = params.team.shape[0]
+    if n_games % g:
+        raise ValueError(f"n_games: value {n_games} is not a multiple of the {g} contents in params")
+    return jax.tree.map(lambda x: jnp.repeat(x, n_games // g, axis=0), params)
+
+
+@partial(jax.jit, static_argnames=("policy", "n_games"))
+def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> dict[str, jax.Array]:
+    """Play ``n_games`` games in parallel until every one has ended (win, loss or draw).
+
+    Args:
+        key: PRNG key.
+        params: content, unbatched or batched (see ``broadcast_params``).
+        policy: ``policy(key, obs, state, params) -> int32[P]`` for one arena (e.g.
+            ``raidjax.policies.heuristic``); it must be hashable (a function, not a lambda
+            rebuilt every call, to avoid recompiling).
+        n_games: number of games (static).
+
+    Returns:
+        Dict of arrays with leading axis ``n_games``: ``outcome`` int32 (1 win, 2 loss, 3 draw),
+        ``length`` int32 (decisions), ``damage`` float32[n, P] (to the boss), ``back_attacks``
+        int32[n, P], ``deaths`` int32 (players dead at the end), ``alive`` bool[n, P],
+        ``dropped`` int32 (projectiles dropped), ``boss_hp`` float32.
+    """
+    batch = broadcast_params(params, n_games)
+    k_reset, k_play = jax.random.split(key)
+    _, state = jax.vmap(reset)(jax.random.split(k_reset, n_games), batch)
+    obs = jax.vmap(lambda s, p: __import__("raidjax").observation.observe(s, p))(state, batch)
+    max_t = batch.config.max_decisions
+
+    def play(carry):
+        t, obs, state = carry
+        keys = jax.random.split(jax.random.fold_in(k_play, t), 2 * n_games).reshape(2, n_games)
+        actions = jax.vmap(policy)(keys[0], obs, state, batch)
+        obs, state, _, _, _ = jax.vmap(step)(keys[1], state, actions, batch)
+        return t + 1, obs, state
+
+    def running(carry):
+        t, _, state = carry
+        return (t < max_t) & jnp.any(state.result == RUNNING)
+
+    _, _, state = jax.lax.while_loop(running, play, (jnp.int32(0), obs, state))
+    n_players = batch.team.shape[-1] - 1
+    alive = state.alive[:, :n_players]
+    return {
+        "outcome": state.result,
+        "length": state.decision,
+        "damage": state.damage_dealt[:, :n_players],
+        "back_attacks": state.back_attacks[:, :n_players],
+        "deaths": jnp.sum(~alive, axis=-1).astype(jnp.int32),
+        "alive": alive,
+        "dropped": state.dropped,
+        "boss_hp": state.hp[:, -1],
+    }
+
+
+def win_rate(results: dict[str, jax.Array]) -> jax.Array:
+    """Share of wins ``float32[]`` (draws count as losses)."""
+    return jnp.mean(results["outcome"] == 1)
+
+
+__all__ = ["playtest", "broadcast_params", "win_rate", "LOSS"]

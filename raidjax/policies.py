@@ -1,0 +1,48 @@
+"""Scripted playtesting policies (SPEC §9), pure and jittable.
+
+A policy is ``policy(key, obs, state, params) -> int32[P]`` for one arena.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from raidjax.types import ACTION_HEURISTIC, CAST_1, N_ACTIONS, TRIGGER_PASSIVE, Observation, Params, State
+
+
+def random(key: jax.Array, obs: Observation, state: State, params: Params) -> jax.Array:
+    """PT-RD: a uniformly random action per player among the 7 movement actions and the cast
+    actions of the active skill slots it has (0–7 for the reference mage), ignoring whether
+    the cast is usable now.
+
+    Returns:
+        ``int32[P]`` actions.
+    """
+    n_players = params.team.shape[0] - 1
+    sk = params.skills
+    has = (sk.in_use[:n_players] > 0) & (sk.trigger[:n_players] != TRIGGER_PASSIVE)  # [P, S]
+    allowed = jnp.concatenate([jnp.ones((n_players, CAST_1), bool), has], axis=-1)
+    logits = jnp.where(allowed, 0.0, -jnp.inf)
+    return jax.random.categorical(key, logits, axis=-1).astype(jnp.int32)
+
+
+def heuristic(key: jax.Array, obs: Observation, state: State, params: Params) -> jax.Array:
+    """PT-HR (the paper's Algorithm 1 as the reference build runs it), carried out by the
+    simulator's built-in script: approach to the preferred distance, circle the boss in the
+    per-episode direction, face it, cast every usable skill.
+
+    Returns:
+        ``int32[P]`` filled with ``ACTION_HEURISTIC``.
+    """
+    n_players = params.team.shape[0] - 1
+    return jnp.full((n_players,), ACTION_HEURISTIC, jnp.int32)
+
+
+def noop(key: jax.Array, obs: Observation, state: State, params: Params) -> jax.Array:
+    """Every player does nothing. Returns ``int32[P]`` zeros."""
+    return jnp.zeros((params.team.shape[0] - 1,), jnp.int32)
+
+
+BY_NAME = {"random": random, "heuristic": heuristic, "noop": noop}
+assert N_ACTIONS == CAST_1 + 3

@@ -1,0 +1,202 @@
+"""Pytrees of the boss-raid simulator: content (``Params``), dynamic ``State``, ``Observation``.
+
+Units are stored in one axis of size ``U = n_players + 1``: players first, the boss last
+(index ``n_players``). Every unit has ``S = 3`` skill slots; ``Skills.in_use`` masks the
+slots a unit actually has. All static sizes come from array shapes or from the small
+static ``EnvConfig`` carried (as non-pytree metadata) inside ``Params``.
+"""
+
+from __future__ import annotations
+
+import jax
+from flax import struct
+
+N_SLOTS = 3  # skill slots per unit
+# Discrete actions of a player (SPEC §4). Casting slot k is action 7 + k.
+NOOP, FORWARD, BACKWARD, ROTATE_LEFT, ROTATE_RIGHT, STRAFE_LEFT, STRAFE_RIGHT = range(7)
+CAST_1 = 7
+N_ACTIONS = CAST_1 + N_SLOTS  # 10; slots not in use are masked
+# Reserved id: the player is driven by the built-in scripted heuristic (PT-HR, SPEC §9) this
+# decision. It moves by setting positions, which no learner action can express.
+ACTION_HEURISTIC = N_ACTIONS
+
+# Outcomes (``State.result`` / ``info["result"]``).
+RUNNING, WIN, LOSS, DRAW = 0, 1, 2, 3
+
+# Skill enums.
+HIT_ATTACK, HIT_SPELL = 0, 1
+TARGET_NONE, TARGET_UNIT, TARGET_REGION = 0, 1, 2  # straight missile / homing / area
+TRIGGER_ACTIVE, TRIGGER_PASSIVE = 0, 1
+# Projectile kinds in the pool.
+PROJ_HOMING, PROJ_STRAIGHT, PROJ_AREA = 0, 1, 2
+
+
+@struct.dataclass
+class EnvConfig:
+    """Static configuration (hashable; not a pytree leaf, so it never enters a vmap).
+
+    Attributes:
+        n_substeps: simulation sub-steps per 0.1 s decision (1 or 5; 5 = the 0.02 s tick).
+        max_projectiles: size M of the projectile pool of each arena.
+        obs_projectiles: K, number of nearest hostile projectiles each player observes.
+        max_decisions: episode limit in decisions (2000 = 200 s).
+        hurtbox_scale: projectiles and areas hit a unit within ``hurtbox_scale x radius`` of its
+            centre (plus the projectile's radius); bodies use the full radius against walls. The
+            calibration knob of docs/GAME.md (0.68 reproduces the paper's PT-HR win rates).
+    """
+
+    n_substeps: int = 1
+    max_projectiles: int = 16
+    obs_projectiles: int = 4
+    max_decisions: int = 2000
+    hurtbox_scale: float = 0.68
+
+
+@struct.dataclass
+class Stats:
+    """Character statistics, every field ``float32[U]`` (SPEC §3; ranges in ``content.STAT_SPECS``)."""
+
+    max_hp: jax.Array
+    hp_regen: jax.Array  # HP per second
+    max_mana: jax.Array
+    mana_regen: jax.Array  # mana per second
+    spell_power: jax.Array
+    move_speed: jax.Array  # player: impulse per tick; boss: chase speed (units/s)
+    attack_power: jax.Array  # base of hit-type "attack" damage and of the basic attack
+    attack_range: jax.Array  # reach of the basic melee attack
+    attack_speed: jax.Array  # basic attacks per second
+    armor: jax.Array
+    evasion: jax.Array
+    parry: jax.Array
+    strength: jax.Array
+    agility: jax.Array
+    intelligence: jax.Array
+    critical: jax.Array
+    crit_multiplier: jax.Array
+    haste: jax.Array
+    versatility: jax.Array
+    mastery: jax.Array
+    back_attack_multiplier: jax.Array
+    radius: jax.Array  # collision radius
+
+
+@struct.dataclass
+class Skills:
+    """Skill parameters, every field of shape ``[U, S]`` (SPEC §3; ranges in ``content.SKILL_SPECS``).
+
+    Enums and booleans are stored as ``int32``; everything else ``float32``.
+    """
+
+    in_use: jax.Array  # bool-like int32: the slot holds a skill
+    trigger: jax.Array  # TRIGGER_ACTIVE / TRIGGER_PASSIVE
+    school: jax.Array  # cosmetic, 0..9
+    hit_type: jax.Array  # HIT_ATTACK / HIT_SPELL
+    target_type: jax.Array  # TARGET_NONE / TARGET_UNIT / TARGET_REGION
+    projectile_speed: jax.Array  # 0 = instant
+    affect_ally: jax.Array
+    affect_enemy: jax.Array
+    cool_time: jax.Array
+    cast_time: jax.Array
+    cost: jax.Array
+    range: jax.Array
+    charge: jax.Array  # int32, 1..3
+    cast_on_moving: jax.Array
+    cast_on_casting: jax.Array
+    cast_on_channeling: jax.Array
+    coefficient: jax.Array
+    # Delivery details (not in the paper's table; raidjax makes them data too).
+    projectile_radius: jax.Array  # missile collision radius, or area radius for regions
+    hit_count: jax.Array  # int32: units an area can hit
+    area_offset: jax.Array  # region centre = caster + offset * (target - caster)
+
+
+@struct.dataclass
+class Params:
+    """The content of one arena. Batch it (leading axes) to give every arena its own content."""
+
+    stats: Stats
+    skills: Skills
+    team: jax.Array  # int32[U]: 0 players, 1 boss
+    config: EnvConfig = struct.field(pytree_node=False, default_factory=EnvConfig)
+
+
+@struct.dataclass
+class Projectiles:
+    """The projectile pool, ``M = config.max_projectiles`` slots, ``live`` masks the used ones."""
+
+    live: jax.Array  # bool[M]
+    kind: jax.Array  # int32[M]: PROJ_HOMING / PROJ_STRAIGHT / PROJ_AREA
+    pos: jax.Array  # float32[M, 2]
+    direction: jax.Array  # float32[M, 2] unit vector (straight missiles)
+    owner: jax.Array  # int32[M] unit index
+    slot: jax.Array  # int32[M] skill slot of the owner
+    target: jax.Array  # int32[M] unit index (homing)
+    life: jax.Array  # float32[M] seconds left (areas)
+    hit_mask: jax.Array  # bool[M, U] units already hit (areas)
+
+
+@struct.dataclass
+class State:
+    """Dynamic state of one arena (leading batch axes when vmapped).
+
+    Shapes with ``U`` units and ``S`` skill slots.
+    """
+
+    pos: jax.Array  # float32[U, 2]
+    heading: jax.Array  # float32[U] radians, 0 = +x
+    vel: jax.Array  # float32[U, 2]
+    hp: jax.Array  # float32[U]
+    mana: jax.Array  # float32[U]
+    alive: jax.Array  # bool[U]
+    moving: jax.Array  # bool[U] moved faster than MOVING_SPEED in the last sub-step
+    cast_left: jax.Array  # float32[U, S] seconds until a cast in progress fires
+    casting: jax.Array  # bool[U, S] a cast of this slot is in progress
+    charges: jax.Array  # int32[U, S]
+    recharge_left: jax.Array  # float32[U, S] seconds until the next charge returns
+    basic_cooldown: jax.Array  # float32[U] seconds until the next basic attack
+    target: jax.Array  # int32[U] current enemy target of each unit
+    orbit_sign: jax.Array  # float32[U] +1 / -1: PT-HR's per-episode circling direction
+    orbit_phase: jax.Array  # float32[U] PT-HR's per-player circling phase offset (radians)
+    clock: jax.Array  # float32[] seconds: PT-HR's circling phase (random start, shared by the team)
+    projectiles: Projectiles
+    decision: jax.Array  # int32[] decisions played
+    result: jax.Array  # int32[] RUNNING / WIN / LOSS / DRAW
+    # Per-episode accumulators for game logs (float32[U] / int32[]).
+    damage_dealt: jax.Array  # damage each unit's hits dealt to enemies
+    back_attacks: jax.Array  # int32[U] back attacks landed
+    dropped: jax.Array  # int32[] projectiles dropped because the pool was full
+
+
+@struct.dataclass
+class Observation:
+    """What each player sees (SPEC §8), every field with a leading player axis ``P``.
+
+    Shapes with ``P`` players, ``S`` skill slots, ``K`` observed projectiles.
+    """
+
+    self_features: jax.Array  # float32[P, 10 + 5 S]
+    boss: jax.Array  # float32[P, 11]
+    teammates: jax.Array  # float32[P, P - 1, 7 + 3 S]
+    teammate_mask: jax.Array  # bool[P, P - 1] teammate alive
+    projectiles: jax.Array  # float32[P, K, 6]
+    projectile_mask: jax.Array  # bool[P, K]
+    walls: jax.Array  # float32[P, 4]
+    action_mask: jax.Array  # bool[P, N_ACTIONS]
+    alive: jax.Array  # bool[P]
+
+    def flat(self) -> jax.Array:
+        """Flat vector view for MLP policies: ``float32[P, D]`` (masks included as 0/1)."""
+        import jax.numpy as jnp
+
+        p = self.self_features.shape[0]
+        parts = [
+            self.self_features,
+            self.boss,
+            self.teammates.reshape(p, -1),
+            self.teammate_mask.astype(jnp.float32),
+            self.projectiles.reshape(p, -1),
+            self.projectile_mask.astype(jnp.float32),
+            self.walls,
+            self.action_mask.astype(jnp.float32),
+        ]
+        return jnp.concatenate(parts, axis=-1)

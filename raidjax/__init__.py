@@ -8,12 +8,16 @@ Quick start::
     results = raidjax.playtest(jax.random.key(1), params, raidjax.policies.heuristic, 1000)
 """
 
-from raidjax import catalogue, policies, types
-from raidjax.content import default_params, make_params, validate_params
-from raidjax.env import reset, step, step_autoreset
-from raidjax.observation import observe
-from raidjax.playtest import playtest, win_rate
-from raidjax.types import EnvConfig, Observation, Params, State
+from raidjax import _xla_flags
+
+_xla_flags.apply()
+
+from raidjax import catalogue, policies, types  # noqa: E402
+from raidjax.content import default_params, make_params, validate_params  # noqa: E402
+from raidjax.env import reset, step, step_autoreset  # noqa: E402
+from raidjax.observation import observe  # noqa: E402
+from raidjax.playtest import playtest, win_rate  # noqa: E402
+from raidjax.types import EnvConfig, Observation, Params, State  # noqa: E402
 
 __version__ = "0.1.0"
 __all__ = [

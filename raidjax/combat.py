@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 
 from raidjax.movement import HALF_ARENA, TICK, heading_vec, nearest_alive_player
+from raidjax.utils import contract, pick, uniform_dice
 from raidjax.types import (
     HIT_ATTACK, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, TARGET_REGION, TARGET_UNIT, TRIGGER_PASSIVE,
     Params, Projectiles, State,
@@ -38,8 +39,9 @@ def skill_targets(state: State, params: Params) -> tuple[jnp.ndarray, jnp.ndarra
     sk = params.skills
     dist = jnp.linalg.norm(state.pos[:, None] - state.pos[None], axis=-1)  # [U, U]
     enemy_t = state.target  # [U]
-    enemy_d = jnp.take_along_axis(dist, enemy_t[:, None], axis=1)  # [U, 1]
-    enemy_ok = state.alive[enemy_t][:, None] & (enemy_d <= sk.range)
+    t_oh = jax.nn.one_hot(enemy_t, dist.shape[0], dtype=bool)
+    enemy_d = jnp.sum(jnp.where(t_oh, dist, 0.0), axis=1, keepdims=True)  # [U, 1]
+    enemy_ok = jnp.any(t_oh & state.alive[None], axis=1)[:, None] & (enemy_d <= sk.range)
     same = params.team[:, None] == params.team[None]
     frac = state.hp / jnp.maximum(params.stats.max_hp, 1.0)
     cand = (same & state.alive[None])[:, None, :] & (dist[:, None, :] <= sk.range[..., None])  # [U,S,U]
@@ -129,7 +131,7 @@ def fire(state: State, params: Params, fired: jnp.ndarray):
     # old target); the re-picked target matters for homing, instant and area delivery.
     direction = jnp.broadcast_to(heading_vec(state.heading)[:, None], (u_n, s_n, 2))
     new_t = jnp.where(jnp.any(fired[b]), nearest_alive_player(state), state.target[b])
-    to_t = state.pos[new_t] - state.pos[b]
+    to_t = pick(state.pos, new_t) - state.pos[b]
     face = jnp.where(jnp.any(fired[b]) & state.alive[b], jnp.arctan2(to_t[1], to_t[0]), state.heading[b])
     state = state.replace(target=state.target.at[b].set(new_t), heading=state.heading.at[b].set(face))
 
@@ -139,37 +141,39 @@ def fire(state: State, params: Params, fired: jnp.ndarray):
     instant = ~region & (sk.projectile_speed <= 0)
     kind = jnp.where(region, PROJ_AREA, jnp.where(sk.target_type == TARGET_UNIT, PROJ_HOMING, PROJ_STRAIGHT))
     caster = jnp.broadcast_to(state.pos[:, None], (u_n, s_n, 2))
-    tpos = state.pos[target]
+    tpos = pick(state.pos, target)
     spawn_pos = jnp.where(region[..., None], caster + sk.area_offset[..., None] * (tpos - caster), caster)
 
     r = u_n * s_n
     req = (fired & ~instant).reshape(r)
     p = state.projectiles
     free = ~p.live
-    req_rank = jnp.cumsum(req) - 1
-    free_rank = jnp.cumsum(free) - 1
-    assign = req[:, None] & free[None] & (req_rank[:, None] == free_rank[None])  # [R, M]
+    req_rank = jnp.where(req, jnp.cumsum(req) - 1, -1)
+    free_rank = jnp.where(free, jnp.cumsum(free) - 1, -2)
+    assign = req_rank[:, None] == free_rank[None]  # [R, M]: request r goes to pool slot m
     got = jnp.any(assign, axis=0)
-    af = assign.astype(jnp.float32)
-
-    def put(old, new):
-        new = new.reshape((r,) + new.shape[2:])
-        val = jnp.einsum("rm,r...->m...", af, new.astype(jnp.float32)).astype(old.dtype)
-        return jnp.where(got.reshape(got.shape + (1,) * (old.ndim - 1)), val, old)
-
+    src = jnp.argmax(assign, axis=0)  # [M] request feeding each slot
     owner = jnp.broadcast_to(jnp.arange(u_n)[:, None], (u_n, s_n))
     slot = jnp.broadcast_to(jnp.arange(s_n)[None], (u_n, s_n))
     life = jnp.where(region, AREA_LIFETIME, MISSILE_LIFETIME)
+    # One packed gather instead of one scatter per field: [R, 9] -> [M, 9].
+    packed = jnp.concatenate(
+        [spawn_pos, direction, jnp.stack([kind, owner, slot, target], -1).astype(jnp.float32), life[..., None]],
+        axis=-1,
+    ).reshape(r, 9)
+    new = jnp.take(packed, src, axis=0)
+    g = got[:, None]
+    as_int = lambda x: jnp.round(x).astype(jnp.int32)  # noqa: E731
     proj = Projectiles(
         live=p.live | got,
-        kind=put(p.kind, kind),
-        pos=put(p.pos, spawn_pos),
-        direction=put(p.direction, direction),
-        owner=put(p.owner, owner),
-        slot=put(p.slot, slot),
-        target=put(p.target, target),
-        life=put(p.life, life),
-        hit_mask=p.hit_mask & ~got[:, None],
+        kind=jnp.where(got, as_int(new[:, 4]), p.kind),
+        pos=jnp.where(g, new[:, 0:2], p.pos),
+        direction=jnp.where(g, new[:, 2:4], p.direction),
+        owner=jnp.where(got, as_int(new[:, 5]), p.owner),
+        slot=jnp.where(got, as_int(new[:, 6]), p.slot),
+        target=jnp.where(got, as_int(new[:, 7]), p.target),
+        life=jnp.where(got, new[:, 8], p.life),
+        hit_mask=p.hit_mask & ~g,
     )
     dropped = jnp.sum(req) - jnp.sum(got)
     inst = (fired & instant).reshape(r)
@@ -178,61 +182,103 @@ def fire(state: State, params: Params, fired: jnp.ndarray):
     return state.replace(projectiles=proj, dropped=state.dropped + dropped), instant_hits, caster.reshape(r, 2)
 
 
-def affected(params: Params, owner: jnp.ndarray, slot: jnp.ndarray) -> jnp.ndarray:
-    """``bool[E, U]``: which units an effect of ``(owner, slot)`` (``int32[E]`` each) can touch."""
-    sk = params.skills
-    same = params.team[owner][:, None] == params.team[None]
-    return ((sk.affect_enemy[owner, slot] > 0)[:, None] & ~same) | ((sk.affect_ally[owner, slot] > 0)[:, None] & same)
+# Columns of the per-source effect table (``effect_table``).
+F_BASE, F_HEAL, F_CRIT, F_CRIT_MULT, F_BACK_MULT, F_VERS, F_AGI, F_TEAM, F_ENEMY, F_ALLY, F_SPEED, F_RADIUS, F_HITS = range(13)
 
 
-def move_projectiles(state: State, params: Params, dt: float):
+def effect_table(params: Params) -> jnp.ndarray:
+    """Everything a hit needs to know about its source, ``float32[U * (S + 1), 13]``.
+
+    Row ``u * (S + 1) + s`` is unit u's skill slot s; row ``u * (S + 1) + S`` its basic attack.
+    Events look their source up with one contraction (``utils.pick``) instead of many gathers.
+    """
+    sk, st = params.skills, params.stats
+    u_n, s_n = sk.coefficient.shape
+    attack = jnp.concatenate([sk.hit_type == HIT_ATTACK, jnp.ones((u_n, 1), bool)], axis=1)
+    coef = jnp.concatenate([sk.coefficient, jnp.ones((u_n, 1))], axis=1)
+    str_scale = 1.0 + (st.strength - NEUTRAL_PRIMARY) / 100.0
+    int_scale = 1.0 + (st.intelligence - NEUTRAL_PRIMARY) / 100.0
+    power = jnp.where(attack, st.attack_power[:, None], st.spell_power[:, None])
+    scale = jnp.where(attack, str_scale[:, None], int_scale[:, None])
+    base = jnp.floor(coef * power + 1e-3) * scale  # SPEC §6: int(coefficient x power)
+    heal = jnp.floor(coef * (st.spell_power * int_scale)[:, None] + 1e-3)
+
+    def per_unit(x):
+        return jnp.broadcast_to(x[:, None], (u_n, s_n + 1))
+
+    def per_slot(x, basic_value):
+        return jnp.concatenate([x.astype(jnp.float32), jnp.full((u_n, 1), basic_value)], axis=1)
+
+    cols = [
+        base, heal, per_unit(st.critical / 100.0), per_unit(st.crit_multiplier),
+        per_unit(st.back_attack_multiplier * (1.0 + st.mastery / 100.0)),
+        per_unit(1.0 + st.versatility / 100.0), per_unit(st.agility), per_unit(params.team.astype(jnp.float32)),
+        per_slot(sk.affect_enemy, 1.0), per_slot(sk.affect_ally, 0.0), per_slot(sk.projectile_speed, 0.0),
+        per_slot(sk.projectile_radius, 0.0), per_slot(sk.hit_count, 1.0),
+    ]
+    return jnp.stack(cols, axis=-1).reshape(u_n * (s_n + 1), len(cols))
+
+
+def source_index(owner: jnp.ndarray, slot: jnp.ndarray, n_slots: int) -> jnp.ndarray:
+    """Row of ``effect_table`` for ``(owner, slot)`` (``slot = n_slots`` is the basic attack)."""
+    return owner * (n_slots + 1) + slot
+
+
+def touchable(feats: jnp.ndarray, params: Params, alive: jnp.ndarray) -> jnp.ndarray:
+    """``bool[E, U]``: alive units an effect with source features ``feats[E, 13]`` can touch."""
+    same = feats[:, F_TEAM, None] == params.team[None].astype(jnp.float32)
+    return ((feats[:, F_ENEMY, None] > 0) & ~same | (feats[:, F_ALLY, None] > 0) & same) & alive[None]
+
+
+def move_projectiles(state: State, params: Params, table: jnp.ndarray, dt: float):
     """Advance the pool one sub-step with swept collision.
 
     Returns ``(state, hits: bool[M, U], from_pos: float32[M, 2])`` where ``from_pos`` is the
     projectile's position before the move (the direction a hit comes from).
     """
     p = state.projectiles
-    sk, st = params.skills, params.stats
-    speed = sk.projectile_speed[p.owner, p.slot]
-    prad = sk.projectile_radius[p.owner, p.slot]
-    step = speed * dt
-    touch = affected(params, p.owner, p.slot) & state.alive[None]  # [M, U]
-    reach = prad[:, None] + params.config.hurtbox_scale * st.radius[None]  # [M, U]
+    s_n = state.casting.shape[1]
+    u_n = state.pos.shape[0]
+    feats = pick(table, source_index(p.owner, p.slot, s_n))  # [M, F]
+    step = feats[:, F_SPEED] * dt
+    touch = touchable(feats, params, state.alive)  # [M, U]
+    reach = feats[:, F_RADIUS, None] + params.config.hurtbox_scale * params.stats.radius[None]
     rel = state.pos[None] - p.pos[:, None]  # [M, U, 2]
     dist = jnp.linalg.norm(rel, axis=-1)
+    t_oh = jax.nn.one_hot(p.target, u_n, dtype=bool)
 
     # Homing: straight at the target's current position; hits only its target.
-    tdist = jnp.take_along_axis(dist, p.target[:, None], axis=1)[:, 0]
-    treach = jnp.take_along_axis(reach, p.target[:, None], axis=1)[:, 0]
-    t_alive = state.alive[p.target]
+    tdist = jnp.sum(jnp.where(t_oh, dist, 0.0), axis=1)
+    treach = jnp.sum(jnp.where(t_oh, reach, 0.0), axis=1)
+    t_alive = jnp.any(t_oh & state.alive[None], axis=1)
+    trel = jnp.sum(jnp.where(t_oh[..., None], rel, 0.0), axis=1)
     homing = p.live & (p.kind == PROJ_HOMING)
     hit_h = homing & t_alive & (tdist - step <= treach)
-    tdir = (state.pos[p.target] - p.pos) / jnp.maximum(tdist, EPS)[:, None]
-    pos_h = p.pos + tdir * jnp.minimum(step, tdist)[:, None]
-    hits_h = hit_h[:, None] & jax.nn.one_hot(p.target, dist.shape[1], dtype=bool)
+    pos_h = p.pos + trel / jnp.maximum(tdist, EPS)[:, None] * jnp.minimum(step, tdist)[:, None]
+    hits_h = hit_h[:, None] & t_oh
 
     # Straight: first touched unit along the segment; walls destroy it.
-    proj_along = jnp.einsum("mud,md->mu", rel, p.direction)
+    along = jnp.sum(rel * p.direction[:, None], axis=-1)
     c = dist**2 - reach**2
-    disc = proj_along**2 - c
-    t_in = proj_along - jnp.sqrt(jnp.maximum(disc, 0.0))
-    t_in = jnp.where(c <= 0, 0.0, t_in)
+    disc = along**2 - c
+    t_in = jnp.where(c <= 0, 0.0, along - jnp.sqrt(jnp.maximum(disc, 0.0)))
     cross = touch & (disc >= 0) & (t_in >= 0) & (t_in <= step[:, None])
     straight = p.live & (p.kind == PROJ_STRAIGHT)
     first = jnp.argmin(jnp.where(cross, t_in, jnp.inf), axis=1)
     hit_s = straight & jnp.any(cross, axis=1)
-    hits_s = hit_s[:, None] & jax.nn.one_hot(first, dist.shape[1], dtype=bool)
+    hits_s = hit_s[:, None] & jax.nn.one_hot(first, u_n, dtype=bool)
     pos_s = p.pos + p.direction * step[:, None]
     out = jnp.any(jnp.abs(pos_s) > HALF_ARENA, axis=-1)
 
     # Area: every touchable unit inside, nearest first, at most hit_count units in all.
     area = p.live & (p.kind == PROJ_AREA)
     inside = area[:, None] & touch & (dist <= reach) & ~p.hit_mask
+    order = jnp.arange(u_n)
     closer = (dist[:, None, :] < dist[:, :, None]) | (
-        (dist[:, None, :] == dist[:, :, None]) & (jnp.arange(dist.shape[1])[None, None] < jnp.arange(dist.shape[1])[None, :, None])
+        (dist[:, None, :] == dist[:, :, None]) & (order[None, None] < order[None, :, None])
     )
     rank = jnp.sum(closer & inside[:, None, :], axis=-1)
-    left = sk.hit_count[p.owner, p.slot] - jnp.sum(p.hit_mask, axis=1)
+    left = feats[:, F_HITS] - jnp.sum(p.hit_mask, axis=1)
     hits_a = inside & (rank < left[:, None])
 
     hits = hits_h | hits_s | hits_a
@@ -243,60 +289,54 @@ def move_projectiles(state: State, params: Params, dt: float):
     return state.replace(projectiles=new), hits, p.pos
 
 
-def resolve_hits(key, state: State, params: Params, hits, owner, slot, basic, from_pos):
+def resolve_hits(key, state: State, params: Params, table: jnp.ndarray, hits, source, from_pos):
     """Apply damage and heals of ``E`` hit events to the units.
 
     Args:
         key: PRNG key for crits, dodges and parries.
-        hits: ``bool[E, U]`` event e touches unit u. ``owner``, ``slot``: ``int32[E]``.
-        basic: ``bool[E]`` the event is a basic attack (coefficient 1, attack power).
+        table: ``effect_table(params)``.
+        hits: ``bool[E, U]`` event e touches unit u.
+        source: ``int32[E]`` row of ``table`` (owner and slot, or the owner's basic attack).
         from_pos: ``float32[E, 2]`` where the hit comes from (back-attack test).
 
     Returns:
-        ``(state, dealt: float32[U], dealt_to_boss: float32[U], back: int32[U])`` by owner.
+        ``(state, dealt_to_boss: float32[U], back: int32[U])`` by owner.
     """
-    sk, st = params.skills, params.stats
+    st = params.stats
     e_n, u_n = hits.shape
-    coef = jnp.where(basic, 1.0, sk.coefficient[owner, slot])
-    attack = basic | (sk.hit_type[owner, slot] == HIT_ATTACK)
-    str_scale = 1.0 + (st.strength - NEUTRAL_PRIMARY) / 100.0
-    int_scale = 1.0 + (st.intelligence - NEUTRAL_PRIMARY) / 100.0
-    power = jnp.where(attack, st.attack_power[owner], st.spell_power[owner])
-    scale = jnp.where(attack, str_scale[owner], int_scale[owner])
-    base = jnp.floor(coef * power + 1e-3) * scale  # SPEC §6: int(coefficient x power)
+    oh_src = jax.nn.one_hot(source, table.shape[0], dtype=jnp.float32)  # [E, R]
+    f = jnp.take(table, source, axis=0)  # [E, F]
+    by_owner = oh_src.reshape(e_n, u_n, -1).sum(-1)  # [E, U]
 
-    u = jax.random.uniform(key, (3, e_n, u_n))
-    crit = u[0] < st.critical[owner][:, None] / 100.0
+    dice = uniform_dice(key, (3, e_n, u_n))
+    crit = dice[0] < f[:, F_CRIT, None]
     rel = from_pos[:, None] - state.pos[None]  # [E, U, 2]
     rel = rel / jnp.maximum(jnp.linalg.norm(rel, axis=-1, keepdims=True), EPS)
-    rear = -heading_vec(state.heading)[None]
-    back = jnp.sum(rel * rear, axis=-1) >= BACK_ATTACK_COS
-    back_mult = (st.back_attack_multiplier * (1.0 + st.mastery / 100.0))[owner][:, None]
-    evasion = st.evasion[None] + 0.5 * (st.agility[None] - NEUTRAL_PRIMARY) - 0.5 * (st.agility[owner][:, None] - NEUTRAL_PRIMARY)
-    dodge = u[1] * 100.0 < evasion
-    parry = u[2] * 100.0 < st.parry[None]
+    back = jnp.sum(rel * -heading_vec(state.heading)[None], axis=-1) >= BACK_ATTACK_COS
+    evasion = st.evasion[None] + 0.5 * (st.agility[None] - f[:, F_AGI, None])
+    dodge = dice[1] * 100.0 < evasion
+    parry = dice[2] * 100.0 < st.parry[None]
     mult = (
-        jnp.where(crit, st.crit_multiplier[owner][:, None], 1.0)
-        * jnp.where(back, back_mult, 1.0)
-        * (1.0 + st.versatility[owner][:, None] / 100.0)
-        * (1.0 - st.armor[None] / 200.0)
-        * (1.0 - st.versatility[None] / 200.0)
+        jnp.where(crit, f[:, F_CRIT_MULT, None], 1.0)
+        * jnp.where(back, f[:, F_BACK_MULT, None], 1.0)
+        * f[:, F_VERS, None]
+        * ((1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0))[None]
         * jnp.where(parry, PARRY_FACTOR, 1.0)
     )
-    enemy = params.team[owner][:, None] != params.team[None]
+    enemy = f[:, F_TEAM, None] != params.team[None].astype(jnp.float32)
     harm = hits & enemy & ~dodge
-    damage = jnp.where(harm, jnp.floor(base[:, None] * mult + 1e-3), 0.0)  # [E, U]
-    heal_amt = jnp.floor(coef * st.spell_power[owner] * int_scale[owner] + 1e-3)
-    heal = jnp.where(hits & ~enemy, heal_amt[:, None], 0.0)
+    damage = jnp.where(harm, jnp.floor(f[:, F_BASE, None] * mult + 1e-3), 0.0)  # [E, U]
+    heal = jnp.where(hits & ~enemy, f[:, F_HEAL, None], 0.0)
+    # Materialise once: otherwise XLA:CPU recomputes the whole chain inside every reduction below.
+    damage, heal, back = jax.lax.optimization_barrier((damage, heal, back))
 
     hp = state.hp - jnp.sum(damage, axis=0)
     alive = state.alive & (hp > 0)
     hp = jnp.where(alive, jnp.minimum(hp + jnp.sum(heal, axis=0), st.max_hp), jnp.minimum(hp, 0.0))
-    by_owner = jax.nn.one_hot(owner, u_n, dtype=jnp.float32)  # [E, U]
-    dealt = by_owner.T @ jnp.sum(damage, axis=1)
-    dealt_to_boss = by_owner.T @ damage[:, -1]
-    back_landed = harm & back & (params.team[owner] == 0)[:, None]
-    back_count = (by_owner.T @ jnp.sum(back_landed, axis=1).astype(jnp.float32)).astype(jnp.int32)
+    dealt = contract(by_owner.T, jnp.sum(damage, axis=1))
+    dealt_to_boss = contract(by_owner.T, damage[:, -1])
+    back_landed = harm & back & (f[:, F_TEAM, None] == 0)
+    back_count = contract(by_owner.T, jnp.sum(back_landed, axis=1).astype(jnp.float32)).astype(jnp.int32)
     died = state.alive & ~alive
     state = state.replace(
         hp=hp, alive=alive,
@@ -305,7 +345,7 @@ def resolve_hits(key, state: State, params: Params, hits, owner, slot, basic, fr
         damage_dealt=state.damage_dealt + dealt,
         back_attacks=state.back_attacks + back_count,
     )
-    return state, dealt, dealt_to_boss, back_count
+    return state, dealt_to_boss, back_count
 
 
 def basic_attacks(state: State, params: Params, dt: float):
@@ -315,9 +355,9 @@ def basic_attacks(state: State, params: Params, dt: float):
     """
     st = params.stats
     t = state.target
-    d = jnp.linalg.norm(state.pos[t] - state.pos, axis=-1) - st.radius - st.radius[t]
+    d = jnp.linalg.norm(pick(state.pos, t) - state.pos, axis=-1) - st.radius - pick(st.radius, t)
     ready = state.basic_cooldown <= EPS
-    go = state.alive & state.alive[t] & (st.attack_power > 0) & (d <= st.attack_range) & ready
+    go = state.alive & pick(state.alive, t) & (st.attack_power > 0) & (d <= st.attack_range) & ready
     cooldown = jnp.where(go, 1.0 / st.attack_speed, jnp.maximum(state.basic_cooldown - dt, 0.0))
     hits = go[:, None] & jax.nn.one_hot(t, t.shape[0], dtype=bool)
     return state.replace(basic_cooldown=cooldown), hits

@@ -80,7 +80,7 @@ def _cast_requests(actions: jnp.ndarray, s_n: int) -> jnp.ndarray:
     return jnp.concatenate([req, jnp.ones((1, s_n), bool)])
 
 
-def _substep(key, state: State, actions, params: Params, dt: float):
+def _substep(key, state: State, actions, params: Params, table, dt: float):
     """Advance one arena by ``dt`` seconds. Returns ``(state, to_boss: f32[U], back: i32[U])``."""
     old_pos = state.pos
     state = movement.move_players(state, actions, params, dt)
@@ -91,16 +91,18 @@ def _substep(key, state: State, actions, params: Params, dt: float):
     state, fired = combat.advance_casts(state, params, dt)
     state, inst_hits, inst_from = combat.fire(state, params, fired)
     proj = state.projectiles
-    state, proj_hits, proj_from = combat.move_projectiles(state, params, dt)
+    state, proj_hits, proj_from = combat.move_projectiles(state, params, table, dt)
     state, basic_hits = combat.basic_attacks(state, params, dt)
     u_n, s_n = fired.shape
     units = jnp.arange(u_n, dtype=jnp.int32)
-    owner = jnp.concatenate([proj.owner, jnp.repeat(units, s_n), units])
-    slot = jnp.concatenate([proj.slot, jnp.tile(jnp.arange(s_n, dtype=jnp.int32), u_n), jnp.zeros(u_n, jnp.int32)])
-    basic = jnp.concatenate([jnp.zeros(proj.owner.shape[0] + u_n * s_n, bool), jnp.ones(u_n, bool)])
+    source = jnp.concatenate([
+        combat.source_index(proj.owner, proj.slot, s_n),
+        combat.source_index(jnp.repeat(units, s_n), jnp.tile(jnp.arange(s_n, dtype=jnp.int32), u_n), s_n),
+        combat.source_index(units, jnp.full(u_n, s_n, jnp.int32), s_n),
+    ])
     hits = jnp.concatenate([proj_hits, inst_hits, basic_hits])
     from_pos = jnp.concatenate([proj_from, inst_from, state.pos])
-    state, _, to_boss, back = combat.resolve_hits(key, state, params, hits, owner, slot, basic, from_pos)
+    state, to_boss, back = combat.resolve_hits(key, state, params, table, hits, source, from_pos)
     state = combat.regenerate(state, params, dt)
     state = state.replace(clock=state.clock + dt)
     result = jnp.where(~state.alive[-1], WIN, jnp.where(~jnp.any(state.alive[:-1]), LOSS, RUNNING))
@@ -134,8 +136,9 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     new = state
     to_boss = jnp.zeros(n_players + 1)
     back = jnp.zeros(n_players + 1, jnp.int32)
+    table = combat.effect_table(params)
     for i, k in enumerate(jax.random.split(key, n_sub)):
-        nxt, tb, bk = _substep(k, new, actions.astype(jnp.int32), params, dt)
+        nxt, tb, bk = _substep(k, new, actions.astype(jnp.int32), params, table, dt)
         running = new.result == RUNNING
         new = _select(running, nxt, new) if i else nxt
         to_boss = to_boss + jnp.where(running, tb, 0.0)
@@ -156,7 +159,7 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
         "damage_dealt": jnp.where(was_done, 0.0, to_boss[:n_players]),
         "back_attack": jnp.where(was_done, 0, back[:n_players]),
     }
-    return observe(new, params), new, reward, done, info
+    return observe(new, params, table), new, reward, done, info
 
 
 def step_autoreset(key: jax.Array, state: State, actions: jax.Array, params: Params):

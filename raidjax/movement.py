@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
+from raidjax.utils import pick
 from raidjax.types import (
     ACTION_HEURISTIC, BACKWARD, FORWARD, ROTATE_LEFT, ROTATE_RIGHT, STRAFE_LEFT, STRAFE_RIGHT,
     Params, State,
@@ -123,8 +124,8 @@ def move_boss(state: State, params: Params, dt: float) -> State:
     """Re-target (if the target died), chase at ``move_speed`` unless casting or close, face the target."""
     b = state.pos.shape[0] - 1
     target = state.target[b]
-    target = jnp.where(state.alive[target], target, nearest_alive_player(state))
-    to_t = state.pos[target] - state.pos[b]
+    target = jnp.where(pick(state.alive, target), target, nearest_alive_player(state))
+    to_t = pick(state.pos, target) - state.pos[b]
     dist = jnp.linalg.norm(to_t)
     unit = to_t / jnp.maximum(dist, 1e-6)
     casting = jnp.any(state.casting[b])

@@ -9,7 +9,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax.combat import haste_factor, skill_targets, usable_slot
+from raidjax.combat import F_SPEED, F_TEAM, effect_table, haste_factor, skill_targets, source_index, usable_slot
+from raidjax.utils import pick
 from raidjax.movement import HALF_ARENA
 from raidjax.types import ACTION_HEURISTIC, CAST_1, HIT_ATTACK, N_ACTIONS, TRIGGER_PASSIVE, Observation, Params, State
 
@@ -35,17 +36,19 @@ def action_mask(state: State, params: Params) -> jnp.ndarray:
     return jnp.concatenate([move, casts[:n_players]], axis=-1)
 
 
-def observe(state: State, params: Params) -> Observation:
+def observe(state: State, params: Params, table: jax.Array | None = None) -> Observation:
     """Build every player's observation.
 
     Args:
         state: one arena's ``State`` (``U = P + 1`` units).
         params: its ``Params``.
+        table: ``combat.effect_table(params)`` if already computed (saves work inside ``step``).
 
     Returns:
         ``Observation`` with a leading player axis ``P`` (shapes in ``types.Observation``).
     """
     st, sk = params.stats, params.skills
+    table = effect_table(params) if table is None else table
     n_players = params.team.shape[0] - 1
     b = n_players
     pos, vel = state.pos / POS_SCALE, state.vel / POS_SCALE
@@ -102,13 +105,14 @@ def observe(state: State, params: Params) -> Observation:
     # Hostile projectiles: the K nearest live ones owned by the boss's team.
     p = state.projectiles
     k = params.config.obs_projectiles
-    hostile = p.live & (params.team[p.owner] != 0)
+    feats = pick(table, source_index(p.owner, p.slot, sk.in_use.shape[1]))
+    hostile = p.live & (feats[:, F_TEAM] != 0)
     rel = p.pos[None] - state.pos[:n_players, None]  # [P, M, 2]
     d = jnp.linalg.norm(rel, axis=-1)
     score = jnp.where(hostile[None], d, jnp.inf)
     neg, idx = jax.lax.top_k(-score, k)
     pmask = jnp.isfinite(neg) & alive_p[:, None]
-    speed = sk.projectile_speed[p.owner, p.slot]
+    speed = feats[:, F_SPEED]
     pvel = jnp.where((p.kind == 1)[:, None], p.direction * speed[:, None], 0.0) / POS_SCALE
     pfeat = jnp.concatenate(
         [jnp.take_along_axis(rel, idx[..., None], axis=1) / POS_SCALE, pvel[idx],

@@ -8,6 +8,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from raidjax.utils import uniform_dice
 from raidjax.types import ACTION_HEURISTIC, CAST_1, N_ACTIONS, TRIGGER_PASSIVE, Observation, Params, State
 
 
@@ -23,8 +24,12 @@ def random(key: jax.Array, obs: Observation, state: State, params: Params) -> ja
     sk = params.skills
     has = (sk.in_use[:n_players] > 0) & (sk.trigger[:n_players] != TRIGGER_PASSIVE)  # [P, S]
     allowed = jnp.concatenate([jnp.ones((n_players, CAST_1), bool), has], axis=-1)
-    logits = jnp.where(allowed, 0.0, -jnp.inf)
-    return jax.random.categorical(key, logits, axis=-1).astype(jnp.int32)
+    # Inverse-CDF sampling with the cheap counter-hash dice (threefry costs more than a step).
+    u = uniform_dice(key, (n_players,))
+    count = jnp.sum(allowed, axis=-1)
+    k = jnp.minimum(jnp.floor(u * count), count - 1).astype(jnp.int32)  # k-th allowed action
+    rank = jnp.cumsum(allowed, axis=-1) - 1
+    return jnp.argmax(allowed & (rank == k[:, None]), axis=-1).astype(jnp.int32)
 
 
 def heuristic(key: jax.Array, obs: Observation, state: State, params: Params) -> jax.Array:

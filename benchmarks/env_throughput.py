@@ -1,0 +1,107 @@
+"""Environment throughput: random-policy rollouts of the full step (observations included).
+
+Compiles ahead of time, times with ``block_until_ready`` and prints one JSON object with the
+machine, the batch size, compile seconds and environment decisions per second (one decision =
+every player acts once). Also times ``raidjax.playtest`` (PT-HR, reference content, range 9,
+games played to completion).
+
+    python benchmarks/env_throughput.py --arenas 4096 --steps 200
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+
+import jax
+import jax.numpy as jnp
+
+import raidjax
+
+
+def machine() -> dict:
+    """Description of the device the benchmark ran on."""
+    dev = jax.devices()[0]
+    return {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
+            "processor": platform.processor() or platform.machine(), "jax": jax.__version__}
+
+
+def make_rollout(n_arenas: int, n_steps: int):
+    """A jittable ``rollout(key, state, params) -> (state, total_reward)`` of ``n_steps`` decisions."""
+
+    def one(key, state, params):
+        obs = raidjax.observe(state, params)
+
+        def body(carry, k):
+            obs, state = carry
+            ka, ks = jax.random.split(k)
+            actions = raidjax.policies.random(ka, obs, state, params)
+            obs, state, reward, _, _ = raidjax.step_autoreset(ks, state, actions, params)
+            return (obs, state), reward.sum()
+
+        (_, state), rewards = jax.lax.scan(body, (obs, state), jax.random.split(key, n_steps))
+        return state, rewards.sum()
+
+    return jax.vmap(one)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--arenas", type=int, default=4096)
+    ap.add_argument("--steps", type=int, default=200)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--playtest-games", type=int, default=4096)
+    args = ap.parse_args()
+
+    params = raidjax.make_params(skill_range=9.0)
+    batch = jax.tree.map(lambda x: jnp.broadcast_to(x, (args.arenas,) + x.shape), params)
+    keys = jax.random.split(jax.random.key(0), args.arenas)
+    _, state = jax.vmap(raidjax.reset)(keys, batch)
+    rollout = make_rollout(args.arenas, args.steps)
+
+    t0 = time.perf_counter()
+    step_compiled = jax.jit(jax.vmap(raidjax.step)).lower(keys, state, jnp.zeros((args.arenas, 3), jnp.int32), batch).compile()
+    step_compile_s = time.perf_counter() - t0
+    del step_compiled
+    t0 = time.perf_counter()
+    compiled = jax.jit(rollout).lower(keys, state, batch).compile()
+    compile_s = time.perf_counter() - t0
+    jax.block_until_ready(compiled(keys, state, batch))  # warm-up
+    times = []
+    for _ in range(args.repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(compiled(keys, state, batch))
+        times.append(time.perf_counter() - t0)
+    best = min(times)
+
+    pt = jax.jit(raidjax.playtest, static_argnames=("policy", "n_games"))
+    t0 = time.perf_counter()
+    pt_compiled = pt.lower(jax.random.key(1), params, raidjax.policies.heuristic, args.playtest_games).compile()
+    pt_compile_s = time.perf_counter() - t0
+    jax.block_until_ready(pt_compiled(jax.random.key(1), params))
+    t0 = time.perf_counter()
+    res = jax.block_until_ready(pt_compiled(jax.random.key(2), params))
+    pt_s = time.perf_counter() - t0
+
+    print(json.dumps({
+        "benchmark": "env_throughput",
+        "machine": machine(),
+        "arenas": args.arenas,
+        "steps_per_rollout": args.steps,
+        "step_compile_s": round(step_compile_s, 2),
+        "rollout_compile_s": round(compile_s, 2),
+        "decisions_per_s": round(args.arenas * args.steps / best),
+        "seconds_per_rollout": [round(t, 3) for t in times],
+        "playtest": {"policy": "heuristic", "skill_range": 9.0, "games": args.playtest_games,
+                     "compile_s": round(pt_compile_s, 2), "seconds": round(pt_s, 3),
+                     "games_per_s": round(args.playtest_games / pt_s),
+                     "decisions_per_s": round(float(res["length"].sum()) / pt_s),
+                     "win_rate": round(float(raidjax.win_rate(res)), 3)},
+    }))
+
+
+if __name__ == "__main__":
+    main()

@@ -36,7 +36,7 @@ def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
     u_n, s_n = sk.in_use.shape
     n_players = u_n - 1
     m = params.config.max_projectiles
-    k_sign, k_clock, k_phase = jax.random.split(key, 3)
+    k_sign, k_clock = jax.random.split(key)
     xs = (jnp.arange(n_players) - (n_players - 1) / 2) * PLAYER_SPACING
     pos = jnp.concatenate([jnp.stack([xs, jnp.full(n_players, PLAYER_SPAWN_Y)], -1), jnp.array([BOSS_SPAWN])])
     heading = jnp.concatenate([jnp.full(n_players, jnp.pi / 2), jnp.array([-jnp.pi / 2])])
@@ -56,7 +56,6 @@ def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
         basic_cooldown=jnp.zeros(u_n),
         target=jnp.full(u_n, n_players, jnp.int32),
         orbit_sign=jnp.where(jax.random.bernoulli(k_sign, 0.5, (u_n,)), 1.0, -1.0),
-        orbit_phase=jax.random.uniform(k_phase, (u_n,), minval=0.0, maxval=2 * jnp.pi),
         clock=jax.random.uniform(k_clock, (), minval=0.0, maxval=2 * jnp.pi),
         projectiles=Projectiles(
             live=jnp.zeros(m, bool), kind=jnp.zeros(m, jnp.int32), pos=jnp.zeros((m, 2)),

@@ -73,15 +73,16 @@ def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) 
 
     # Scripted heuristic (PT-HR), as the reference build runs it (docs/GAME.md): approach at
     # 5 x move speed to the preferred distance R; inside R, ease towards a point on the circle of
-    # radius R around the boss that turns at move-speed rad/s (each player with its own random
-    # phase), while retreating at 5 x move speed. It stands still while casting.
+    # radius R around the boss that turns at move-speed rad/s (one phase shared by the team, so
+    # players circling the same way clump, as in the reference), while retreating at 5 x move
+    # speed. It stands still while casting.
     boss = state.pos[-1]
     to_boss = boss - pos
     dist = jnp.linalg.norm(to_boss, axis=-1)
     unit = to_boss / jnp.maximum(dist, 1e-6)[:, None]
     preferred = heuristic_distance(state, params)[:n_players]
     step = HEURISTIC_SPEED * speed * dt
-    theta = speed * state.clock + state.orbit_phase[:n_players]
+    theta = speed * state.clock
     cw = jnp.stack([jnp.cos(theta), jnp.sin(theta)], axis=-1)
     ccw = jnp.stack([jnp.sin(theta), jnp.cos(theta)], axis=-1)
     spot = boss - preferred[:, None] * jnp.where(state.orbit_sign[:n_players, None] > 0, cw, ccw)

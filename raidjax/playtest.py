@@ -9,7 +9,9 @@ import jax
 import jax.numpy as jnp
 
 from raidjax.env import reset, step
-from raidjax.types import LOSS, RUNNING, Params
+from raidjax.logs import episode_summary
+from raidjax.observation import observe
+from raidjax.types import RUNNING, Params
 
 Policy = Callable  # policy(key, obs, state, params) -> int32[P]
 
@@ -57,7 +59,7 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> di
     batch = broadcast_params(params, n_games)
     k_reset, k_play = jax.random.split(key)
     _, state = jax.vmap(reset)(jax.random.split(k_reset, n_games), batch)
-    obs = jax.vmap(lambda s, p: __import__("raidjax").observation.observe(s, p))(state, batch)
+    obs = jax.vmap(observe)(state, batch)
     max_t = batch.config.max_decisions
 
     def play(carry):
@@ -72,18 +74,7 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> di
         return (t < max_t) & jnp.any(state.result == RUNNING)
 
     _, _, state = jax.lax.while_loop(running, play, (jnp.int32(0), obs, state))
-    n_players = batch.team.shape[-1] - 1
-    alive = state.alive[:, :n_players]
-    return {
-        "outcome": state.result,
-        "length": state.decision,
-        "damage": state.damage_dealt[:, :n_players],
-        "back_attacks": state.back_attacks[:, :n_players],
-        "deaths": jnp.sum(~alive, axis=-1).astype(jnp.int32),
-        "alive": alive,
-        "dropped": state.dropped,
-        "boss_hp": state.hp[:, -1],
-    }
+    return episode_summary(state)
 
 
 def win_rate(results: dict[str, jax.Array]) -> jax.Array:
@@ -91,4 +82,4 @@ def win_rate(results: dict[str, jax.Array]) -> jax.Array:
     return jnp.mean(results["outcome"] == 1)
 
 
-__all__ = ["playtest", "broadcast_params", "win_rate", "LOSS"]
+__all__ = ["playtest", "broadcast_params", "win_rate"]

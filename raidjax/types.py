@@ -42,14 +42,14 @@ class EnvConfig:
         max_decisions: episode limit in decisions (2000 = 200 s).
         hurtbox_scale: projectiles and areas hit a unit within ``hurtbox_scale x radius`` of its
             centre (plus the projectile's radius); bodies use the full radius against walls. The
-            calibration knob of docs/GAME.md (0.68 reproduces the paper's PT-HR win rates).
+            calibration knob of docs/GAME.md (0.64 reproduces the paper's PT-HR win rates).
     """
 
     n_substeps: int = 1
     max_projectiles: int = 16
     obs_projectiles: int = 4
     max_decisions: int = 2000
-    hurtbox_scale: float = 0.68
+    hurtbox_scale: float = 0.64
 
 
 @struct.dataclass
@@ -156,7 +156,6 @@ class State:
     basic_cooldown: jax.Array  # float32[U] seconds until the next basic attack
     target: jax.Array  # int32[U] current enemy target of each unit
     orbit_sign: jax.Array  # float32[U] +1 / -1: PT-HR's per-episode circling direction
-    orbit_phase: jax.Array  # float32[U] PT-HR's per-player circling phase offset (radians)
     clock: jax.Array  # float32[] seconds: PT-HR's circling phase (random start, shared by the team)
     projectiles: Projectiles
     decision: jax.Array  # int32[] decisions played

@@ -1,0 +1,107 @@
+"""Measure the PT-HR / PT-RD win-rate table and print it beside the paper's (SPEC §9).
+
+    python -m raidjax.calibrate --games 2000 [--json results.json]
+
+Every cell is ``--games`` games with the reference content at that skill range, all played in
+parallel; the tolerance check is the project's calibration contract (PT-HR within ±0.10,
+PT-RD within ±0.05).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+
+import jax
+
+import raidjax
+
+RANGES = (5.0, 9.0, 13.0, 17.0)
+PAPER = {"heuristic": (0.089, 0.371, 0.698, 0.830), "random": (0.000, 0.002, 0.029, 0.058)}
+TOLERANCE = {"heuristic": 0.10, "random": 0.05}
+LABEL = {"heuristic": "PT-HR", "random": "PT-RD"}
+
+
+def measure(n_games: int, seed: int = 0, ranges=RANGES) -> dict:
+    """Win rates of PT-HR and PT-RD at each range.
+
+    Args:
+        n_games: games per cell.
+        seed: PRNG seed.
+        ranges: skill ranges (columns).
+
+    Returns:
+        ``{policy: {"win_rate": [..], "stderr": [..], "mean_length": [..]}}`` for
+        ``policy`` in ``("heuristic", "random")``, one entry per range.
+    """
+    out = {}
+    for name in ("heuristic", "random"):
+        policy = raidjax.policies.BY_NAME[name]
+        rows = {"win_rate": [], "stderr": [], "mean_length": []}
+        for i, r in enumerate(ranges):
+            params = raidjax.make_params(skill_range=r)
+            res = raidjax.playtest(jax.random.key(seed * 1000 + i), params, policy, n_games)
+            w = float(raidjax.win_rate(res))
+            rows["win_rate"].append(round(w, 4))
+            rows["stderr"].append(round(math.sqrt(max(w * (1 - w), 1e-12) / n_games), 4))
+            rows["mean_length"].append(round(float(res["length"].mean()), 1))
+        out[name] = rows
+    return out
+
+
+def markdown(table: dict, n_games: int, ranges=RANGES) -> str:
+    """The measured table beside the paper's as Markdown, with a pass/fail column."""
+    head = "| agent | " + " | ".join(f"range {r:g}" for r in ranges) + " | within tolerance |"
+    lines = [head, "|" + "---|" * (len(ranges) + 2)]
+    for name, rows in table.items():
+        cells, ok = [], True
+        for w, se, paper in zip(rows["win_rate"], rows["stderr"], PAPER[name], strict=False):
+            ok &= abs(w - paper) <= TOLERANCE[name]
+            cells.append(f"{w:.3f} ± {se:.3f} (paper {paper:.3f})")
+        lines.append(f"| {LABEL[name]} | " + " | ".join(cells) + f" | {'yes' if ok else 'NO'} (±{TOLERANCE[name]}) |")
+    lines.append(f"\n{n_games} games per cell; ± is the binomial standard error.")
+    return "\n".join(lines)
+
+
+def write_json_atomic(path: str, payload: dict) -> None:
+    """Write ``payload`` as JSON to ``path`` atomically (temp file + rename)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=".json")
+    with os.fdopen(fd, "w") as f:
+        json.dump(payload, f, indent=2)
+    os.replace(tmp, path)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="PT-HR / PT-RD win rates vs the RaidEnv paper")
+    ap.add_argument("--games", type=int, default=2000, help="games per cell (default 2000)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--json", help="also write the results to this JSON file")
+    ap.add_argument("--check", action="store_true", help="exit 1 if a cell is outside the tolerance")
+    args = ap.parse_args(argv)
+    if args.games < 1:
+        ap.error(f"--games: value {args.games} must be >= 1")
+    t0 = time.perf_counter()
+    print(f"Playing {args.games} games per cell, {len(RANGES) * 2} cells, on {jax.devices()[0].platform} ...",
+          file=sys.stderr, flush=True)
+    table = measure(args.games, args.seed)
+    seconds = time.perf_counter() - t0
+    print(markdown(table, args.games))
+    games = args.games * len(RANGES) * 2
+    print(f"{games} games in {seconds:.1f} s (compile included).")
+    if args.json:
+        write_json_atomic(args.json, {"games_per_cell": args.games, "seconds": seconds, "table": table, "paper": PAPER})
+    ok = all(
+        abs(w - p) <= TOLERANCE[n] for n, rows in table.items() for w, p in zip(rows["win_rate"], PAPER[n], strict=False)
+    )
+    return 0 if ok or not args.check else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,133 @@
+"""Game logs: per-episode summaries, per-step traces recorded from a scan, occupancy heatmaps.
+
+Everything here is pure and jittable; traces have a leading time axis ``T`` (and any batch
+axes in front when vmapped), so a batch of recorded episodes is one pytree of arrays.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from raidjax.env import reset, step
+from raidjax.movement import HALF_ARENA
+from raidjax.types import RUNNING, Params, State
+
+HEATMAP_BINS = 24
+
+
+@struct.dataclass
+class Trace:
+    """One decision of one arena, as recorded by ``record_episode`` (leading ``T`` when stacked).
+
+    Shapes with ``U`` units, ``S`` skill slots, ``M`` projectile slots.
+    """
+
+    pos: jax.Array  # float32[U, 2]
+    heading: jax.Array  # float32[U]
+    hp: jax.Array  # float32[U]
+    alive: jax.Array  # bool[U]
+    casting: jax.Array  # bool[U, S]
+    target: jax.Array  # int32[U]
+    projectile_live: jax.Array  # bool[M]
+    projectile_pos: jax.Array  # float32[M, 2]
+    projectile_kind: jax.Array  # int32[M]
+    projectile_owner: jax.Array  # int32[M]
+    actions: jax.Array  # int32[P] the actions taken to reach this decision
+    reward: jax.Array  # float32[P]
+    running: jax.Array  # bool[]: the episode had not ended before this decision
+
+
+def snapshot(state: State, actions: jax.Array, reward: jax.Array, running: jax.Array) -> Trace:
+    """The ``Trace`` of ``state`` (one arena) after ``actions: int32[P]`` paid ``reward: float32[P]``."""
+    p = state.projectiles
+    return Trace(
+        pos=state.pos, heading=state.heading, hp=state.hp, alive=state.alive, casting=state.casting,
+        target=state.target, projectile_live=p.live, projectile_pos=p.pos, projectile_kind=p.kind,
+        projectile_owner=p.owner, actions=actions, reward=reward, running=running,
+    )
+
+
+def episode_summary(state: State) -> dict[str, jax.Array]:
+    """Summary of a finished (or running) episode from its ``State`` (any leading batch axes).
+
+    Returns:
+        Dict with ``outcome`` int32 (0 running, 1 win, 2 loss, 3 draw), ``length`` int32
+        (decisions), ``damage`` float32[P] (to the boss), ``back_attacks`` int32[P],
+        ``deaths`` int32, ``alive`` bool[P], ``dropped`` int32 (projectiles dropped for a full
+        pool), ``boss_hp`` float32.
+    """
+    n_players = state.hp.shape[-1] - 1
+    alive = state.alive[..., :n_players]
+    return {
+        "outcome": state.result,
+        "length": state.decision,
+        "damage": state.damage_dealt[..., :n_players],
+        "back_attacks": state.back_attacks[..., :n_players],
+        "deaths": jnp.sum(~alive, axis=-1).astype(jnp.int32),
+        "alive": alive,
+        "dropped": state.dropped,
+        "boss_hp": state.hp[..., -1],
+    }
+
+
+def record_episode(key: jax.Array, params: Params, policy: Callable, n_decisions: int):
+    """Play one episode for ``n_decisions`` decisions (static) and record every decision.
+
+    Args:
+        key: PRNG key.
+        params: one arena's ``Params`` (vmap this function for a batch).
+        policy: ``policy(key, obs, state, params) -> int32[P]``.
+        n_decisions: trace length ``T``; decisions after the episode ended repeat the final
+            state with ``running = False``.
+
+    Returns:
+        ``(trace, summary)``: ``Trace`` with leading axis ``T + 1`` (the reset state first) and
+        ``episode_summary`` of the final state.
+    """
+    k_reset, k_play = jax.random.split(key)
+    obs, state = reset(k_reset, params)
+    n_players = params.team.shape[-1] - 1
+    first = snapshot(state, jnp.zeros(n_players, jnp.int32), jnp.zeros(n_players), jnp.bool_(True))
+
+    def body(carry, k):
+        obs, state = carry
+        ka, ks = jax.random.split(k)
+        actions = policy(ka, obs, state, params)
+        running = state.result == RUNNING
+        obs, state, reward, _, _ = step(ks, state, actions, params)
+        return (obs, state), snapshot(state, actions, reward, running)
+
+    (_, state), traces = jax.lax.scan(body, (obs, state), jax.random.split(k_play, n_decisions))
+    trace = jax.tree.map(lambda a, b: jnp.concatenate([a[None], b]), first, traces)
+    return trace, episode_summary(state)
+
+
+def occupancy_heatmap(pos: jax.Array, mask: jax.Array, bins: int = HEATMAP_BINS) -> jax.Array:
+    """Average position occupancy on a ``bins x bins`` grid over the arena (SPEC §11).
+
+    Args:
+        pos: ``float32[..., 2]`` positions (any leading axes: games, time, players).
+        mask: ``bool[...]`` which positions count (e.g. alive players of running decisions).
+        bins: grid size (24 in the paper).
+
+    Returns:
+        ``float32[bins, bins]`` indexed ``[x_bin, y_bin]``, summing to 1 (all zeros if nothing
+        counted).
+    """
+    cell = jnp.floor((pos + HALF_ARENA) / (2 * HALF_ARENA) * bins).astype(jnp.int32)
+    cell = jnp.clip(cell, 0, bins - 1).reshape(-1, 2)
+    w = mask.reshape(-1).astype(jnp.float32)
+    counts = jnp.zeros((bins, bins)).at[cell[:, 0], cell[:, 1]].add(w)
+    return counts / jnp.maximum(counts.sum(), 1.0)
+
+
+def trace_heatmap(trace: Trace, bins: int = HEATMAP_BINS) -> jax.Array:
+    """Occupancy heatmap ``float32[bins, bins]`` of the alive players over a (batch of) trace(s)."""
+    n_players = trace.actions.shape[-1]
+    pos = trace.pos[..., :n_players, :]
+    mask = trace.alive[..., :n_players] & trace.running[..., None]
+    return occupancy_heatmap(pos, mask, bins)

@@ -36,6 +36,7 @@ class Trace:
     projectile_pos: jax.Array  # float32[M, 2]
     projectile_kind: jax.Array  # int32[M]
     projectile_owner: jax.Array  # int32[M]
+    projectile_slot: jax.Array  # int32[M]
     actions: jax.Array  # int32[P] the actions taken to reach this decision
     reward: jax.Array  # float32[P]
     running: jax.Array  # bool[]: the episode had not ended before this decision
@@ -47,7 +48,7 @@ def snapshot(state: State, actions: jax.Array, reward: jax.Array, running: jax.A
     return Trace(
         pos=state.pos, heading=state.heading, hp=state.hp, alive=state.alive, casting=state.casting,
         target=state.target, projectile_live=p.live, projectile_pos=p.pos, projectile_kind=p.kind,
-        projectile_owner=p.owner, actions=actions, reward=reward, running=running,
+        projectile_owner=p.owner, projectile_slot=p.slot, actions=actions, reward=reward, running=running,
     )
 
 

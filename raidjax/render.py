@@ -1,0 +1,134 @@
+"""Replays: turn a recorded episode (``logs.Trace``) into an animated GIF.
+
+Drawn with Pillow (fast: no plotting library in the loop): the arena, the boss with its facing
+and a line to its target, players coloured by slot, HP bars, casting rings, missiles and area
+attacks.
+
+    python -m raidjax.render --policy heuristic --skill-range 9 --out replay.gif
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+
+import jax
+import numpy as np
+from PIL import Image, ImageDraw
+
+from raidjax.movement import HALF_ARENA
+from raidjax.types import PROJ_AREA, Params
+
+PLAYER_COLOURS = [(66, 135, 245), (46, 204, 113), (241, 196, 15), (155, 89, 182), (230, 126, 34)]
+BOSS_COLOUR = (200, 40, 40)
+BG, WALL = (245, 243, 238), (60, 60, 60)
+
+
+def _frames(trace, params: Params, size: int, every: int) -> list[Image.Image]:
+    tr = jax.tree.map(np.asarray, trace)
+    radius = np.asarray(params.stats.radius)
+    max_hp = np.maximum(np.asarray(params.stats.max_hp), 1.0)
+    proj_radius = np.asarray(params.skills.projectile_radius)
+    n_players = tr.actions.shape[-1]
+    margin = 12
+    scale = (size - 2 * margin) / (2 * HALF_ARENA)
+
+    def xy(p):  # world (x, y) -> pixel; +y is up
+        return margin + (p[0] + HALF_ARENA) * scale, size - margin - (p[1] + HALF_ARENA) * scale
+
+    last = int(np.argmin(tr.running)) if not tr.running.all() else tr.pos.shape[0] - 1
+    frames = []
+    for t in list(range(0, last + 1, every)) + ([last] if last % every else []):
+        img = Image.new("RGB", (size, size), BG)
+        d = ImageDraw.Draw(img)
+        d.rectangle([margin, margin, size - margin, size - margin], outline=WALL, width=3)
+        for m in np.flatnonzero(tr.projectile_live[t]):  # areas under units, missiles above
+            if tr.projectile_kind[t, m] == PROJ_AREA:
+                cx, cy = xy(tr.projectile_pos[t, m])
+                r = proj_radius[tr.projectile_owner[t, m], tr.projectile_slot[t, m]] * scale
+                d.ellipse([cx - r, cy - r, cx + r, cy + r], fill=(255, 180, 180), outline=BOSS_COLOUR)
+        boss = tr.pos[t, -1]
+        if tr.alive[t, -1]:
+            tx, ty = xy(tr.pos[t, tr.target[t, -1]])
+            d.line([xy(boss), (tx, ty)], fill=(230, 150, 150), width=1)
+        for u in range(tr.pos.shape[1]):
+            cx, cy = xy(tr.pos[t, u])
+            r = radius[u] * scale
+            colour = BOSS_COLOUR if u == n_players else PLAYER_COLOURS[u % len(PLAYER_COLOURS)]
+            if not tr.alive[t, u]:
+                d.line([cx - r, cy - r, cx + r, cy + r], fill=(120, 120, 120), width=2)
+                d.line([cx - r, cy + r, cx + r, cy - r], fill=(120, 120, 120), width=2)
+                continue
+            if tr.casting[t, u].any():
+                d.ellipse([cx - r - 3, cy - r - 3, cx + r + 3, cy + r + 3], outline=(0, 0, 0), width=2)
+            d.ellipse([cx - r, cy - r, cx + r, cy + r], fill=colour)
+            h = tr.heading[t, u]
+            d.line([cx, cy, cx + np.cos(h) * r * 1.6, cy - np.sin(h) * r * 1.6], fill=(0, 0, 0), width=2)
+            frac = float(np.clip(tr.hp[t, u] / max_hp[u], 0, 1))
+            w = max(2 * r, 14)
+            d.rectangle([cx - w / 2, cy - r - 8, cx + w / 2, cy - r - 4], fill=(90, 90, 90))
+            d.rectangle([cx - w / 2, cy - r - 8, cx - w / 2 + w * frac, cy - r - 4], fill=(60, 200, 60))
+        for m in np.flatnonzero(tr.projectile_live[t]):
+            if tr.projectile_kind[t, m] != PROJ_AREA:
+                cx, cy = xy(tr.projectile_pos[t, m])
+                own = tr.projectile_owner[t, m]
+                colour = BOSS_COLOUR if own == n_players else PLAYER_COLOURS[own % len(PLAYER_COLOURS)]
+                d.ellipse([cx - 3, cy - 3, cx + 3, cy + 3], fill=colour, outline=(0, 0, 0))
+        d.text((margin + 4, margin + 4), f"t = {t / 10:5.1f} s   boss HP {tr.hp[t, -1]:.0f}", fill=(0, 0, 0))
+        frames.append(img)
+    return frames
+
+
+def render_gif(trace, params: Params, path: str, size: int = 360, every: int = 2, fps: int = 20) -> int:
+    """Write an animated GIF of one recorded episode, atomically.
+
+    Args:
+        trace: ``logs.Trace`` of one arena with leading time axis ``T`` (from ``record_episode``).
+        params: that arena's ``Params`` (radii, HP maxima, area radii).
+        path: output ``.gif`` path.
+        size: image side in pixels.
+        every: draw every ``every``-th decision (2 = 0.2 s of game time per frame).
+        fps: frames per second of the GIF.
+
+    Returns:
+        The number of frames written (the episode's end is always included).
+    """
+    frames = _frames(trace, params, size, every)
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=".gif")
+    os.close(fd)
+    os.chmod(tmp, 0o644)
+    frames[0].save(tmp, save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0, optimize=True)
+    os.replace(tmp, path)
+    return len(frames)
+
+
+def main(argv=None) -> None:
+    import raidjax
+
+    ap = argparse.ArgumentParser(description="Render a replay GIF of one episode")
+    ap.add_argument("--policy", default="heuristic", help="random | heuristic | noop | path to a MA-POCA checkpoint dir")
+    ap.add_argument("--skill-range", type=float, default=9.0)
+    ap.add_argument("--players", default="mage,mage,mage", help="comma-separated class presets")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--decisions", type=int, default=600)
+    ap.add_argument("--out", default="replay.gif")
+    args = ap.parse_args(argv)
+    params = raidjax.make_params(players=args.players.split(","), skill_range=args.skill_range)
+    if args.policy in raidjax.policies.BY_NAME:
+        policy = raidjax.policies.BY_NAME[args.policy]
+    else:
+        from trainers.mapoca import load_policy  # trained team (issue 3)
+
+        policy = load_policy(args.policy)
+    record = jax.jit(raidjax.logs.record_episode, static_argnames=("policy", "n_decisions"))
+    trace, summary = record(jax.random.key(args.seed), params, policy, args.decisions)
+    n = render_gif(trace, params, args.out)
+    outcome = {0: "running", 1: "win", 2: "loss", 3: "draw"}[int(summary["outcome"])]
+    print(f"{args.out}: {n} frames, {outcome} after {int(summary['length']) / 10:.1f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -63,7 +63,8 @@ def main() -> None:
     rollout = make_rollout(args.arenas, args.steps)
 
     t0 = time.perf_counter()
-    step_compiled = jax.jit(jax.vmap(raidjax.step)).lower(keys, state, jnp.zeros((args.arenas, 3), jnp.int32), batch).compile()
+    no_op = jnp.zeros((args.arenas, 3), jnp.int32)
+    step_compiled = jax.jit(jax.vmap(raidjax.step)).lower(keys, state, no_op, batch).compile()
     step_compile_s = time.perf_counter() - t0
     del step_compiled
     t0 = time.perf_counter()

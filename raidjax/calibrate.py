@@ -99,7 +99,9 @@ def main(argv=None) -> int:
     if args.json:
         write_json_atomic(args.json, {"games_per_cell": args.games, "seconds": seconds, "table": table, "paper": PAPER})
     ok = all(
-        abs(w - p) <= TOLERANCE[n] for n, rows in table.items() for w, p in zip(rows["win_rate"], PAPER[n], strict=False)
+        abs(w - p) <= TOLERANCE[n]
+        for n, rows in table.items()
+        for w, p in zip(rows["win_rate"], PAPER[n], strict=False)
     )
     return 0 if ok or not args.check else 1
 

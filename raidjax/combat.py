@@ -10,11 +10,19 @@ import jax
 import jax.numpy as jnp
 
 from raidjax.movement import HALF_ARENA, TICK, heading_vec, nearest_alive_player
-from raidjax.utils import contract, pick, uniform_dice
 from raidjax.types import (
-    HIT_ATTACK, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, TARGET_REGION, TARGET_UNIT, TRIGGER_PASSIVE,
-    Params, Projectiles, State,
+    HIT_ATTACK,
+    PROJ_AREA,
+    PROJ_HOMING,
+    PROJ_STRAIGHT,
+    TARGET_REGION,
+    TARGET_UNIT,
+    TRIGGER_PASSIVE,
+    Params,
+    Projectiles,
+    State,
 )
+from raidjax.utils import contract, pick, uniform_dice
 
 AREA_LIFETIME = 5 * TICK  # an area lingers 5 ticks
 MISSILE_LIFETIME = 10.0  # safety net: missiles expire after 10 s
@@ -183,7 +191,8 @@ def fire(state: State, params: Params, fired: jnp.ndarray):
 
 
 # Columns of the per-source effect table (``effect_table``).
-F_BASE, F_HEAL, F_CRIT, F_CRIT_MULT, F_BACK_MULT, F_VERS, F_AGI, F_TEAM, F_ENEMY, F_ALLY, F_SPEED, F_RADIUS, F_HITS = range(13)
+(F_BASE, F_HEAL, F_CRIT, F_CRIT_MULT, F_BACK_MULT, F_VERS, F_AGI, F_TEAM, F_ENEMY, F_ALLY, F_SPEED, F_RADIUS,
+ F_HITS) = range(13)
 
 
 def effect_table(params: Params) -> jnp.ndarray:

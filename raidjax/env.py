@@ -13,7 +13,16 @@ import jax.numpy as jnp
 from raidjax import combat, movement
 from raidjax.observation import observe
 from raidjax.types import (
-    ACTION_HEURISTIC, CAST_1, DRAW, LOSS, RUNNING, WIN, Observation, Params, Projectiles, State,
+    ACTION_HEURISTIC,
+    CAST_1,
+    DRAW,
+    LOSS,
+    RUNNING,
+    WIN,
+    Observation,
+    Params,
+    Projectiles,
+    State,
 )
 
 PLAYER_SPAWN_Y, PLAYER_SPACING = -10.0, 3.0

@@ -7,11 +7,18 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from raidjax.utils import pick
 from raidjax.types import (
-    ACTION_HEURISTIC, BACKWARD, FORWARD, ROTATE_LEFT, ROTATE_RIGHT, STRAFE_LEFT, STRAFE_RIGHT,
-    Params, State,
+    ACTION_HEURISTIC,
+    BACKWARD,
+    FORWARD,
+    ROTATE_LEFT,
+    ROTATE_RIGHT,
+    STRAFE_LEFT,
+    STRAFE_RIGHT,
+    Params,
+    State,
 )
+from raidjax.utils import pick
 
 TICK = 0.02  # physics tick of the reference build (s)
 DECISION = 0.1  # decision period (s)

@@ -10,9 +10,9 @@ import jax
 import jax.numpy as jnp
 
 from raidjax.combat import F_SPEED, F_TEAM, effect_table, haste_factor, skill_targets, source_index, usable_slot
-from raidjax.utils import pick
 from raidjax.movement import HALF_ARENA
 from raidjax.types import ACTION_HEURISTIC, CAST_1, HIT_ATTACK, N_ACTIONS, TRIGGER_PASSIVE, Observation, Params, State
+from raidjax.utils import pick
 
 POS_SCALE, COOL_SCALE, RANGE_SCALE, DAMAGE_SCALE, CAST_SCALE = 20.0, 5.0, 20.0, 100.0, 5.0
 
@@ -120,7 +120,8 @@ def observe(state: State, params: Params, table: jax.Array | None = None) -> Obs
         axis=-1,
     ) * pmask[..., None]
 
-    walls = jnp.concatenate([HALF_ARENA - state.pos[:n_players], HALF_ARENA + state.pos[:n_players]], axis=-1) / POS_SCALE
+    own = state.pos[:n_players]
+    walls = jnp.concatenate([HALF_ARENA - own, HALF_ARENA + own], axis=-1) / POS_SCALE
     return Observation(
         self_features=self_features,
         boss=boss_core * alive_p[:, None],

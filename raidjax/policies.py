@@ -8,8 +8,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax.utils import uniform_dice
 from raidjax.types import ACTION_HEURISTIC, CAST_1, N_ACTIONS, TRIGGER_PASSIVE, Observation, Params, State
+from raidjax.utils import uniform_dice
 
 
 def random(key: jax.Array, obs: Observation, state: State, params: Params) -> jax.Array:

@@ -109,7 +109,8 @@ def main(argv=None) -> None:
     import raidjax
 
     ap = argparse.ArgumentParser(description="Render a replay GIF of one episode")
-    ap.add_argument("--policy", default="heuristic", help="random | heuristic | noop | path to a MA-POCA checkpoint dir")
+    ap.add_argument("--policy", default="heuristic",
+                    help="random | heuristic | noop | a MA-POCA checkpoint directory")
     ap.add_argument("--skill-range", type=float, default=9.0)
     ap.add_argument("--players", default="mage,mage,mage", help="comma-separated class presets")
     ap.add_argument("--seed", type=int, default=0)

@@ -30,6 +30,9 @@ BACK_ATTACK_COS = 0.5  # within +-60 degrees of the rear direction
 NEUTRAL_PRIMARY = 50.0  # strength / agility / intelligence with no effect
 PARRY_FACTOR = 0.5  # a parried hit does half damage
 EPS = 1e-6
+# Timers run down by float32 subtraction of the sub-step; the rounding error reaches ~1e-3 s
+# over a 60 s cool time at 0.02 s steps (and a 4.0 s cast took 41 decisions with 1e-6).
+TIME_EPS = 2e-3
 
 
 def haste_factor(params: Params) -> jnp.ndarray:
@@ -106,22 +109,32 @@ def advance_casts(state: State, params: Params, dt: float) -> tuple[State, jnp.n
     """Count casts down; the ones that complete fire. Returns the state and ``fired: bool[U, S]``.
 
     Firing pays mana, uses a charge and starts the recharge timer (cool time starts when the
-    cast completes; one charge returns per cool time).
+    cast completes; one charge returns per cool time). A cast that completes when its caster
+    can no longer pay (other casts spent the mana meanwhile) fizzles like a cancelled cast: no
+    effect, no cost, no cooldown; slots pay in order, so mana never goes negative.
     """
     sk = params.skills
     cast_left = jnp.where(state.casting, state.cast_left - dt, state.cast_left)
-    fired = state.casting & (cast_left <= EPS) & state.alive[:, None]
+    done = state.casting & (cast_left <= TIME_EPS) & state.alive[:, None]
+    mana = state.mana
+    paid = []
+    for s in range(done.shape[1]):
+        ok = done[:, s] & (mana >= sk.cost[:, s])
+        mana = mana - jnp.where(ok, sk.cost[:, s], 0.0)
+        paid.append(ok)
+    fired = jnp.stack(paid, axis=-1)
     cool = sk.cool_time / haste_factor(params)
     full = state.charges >= sk.charge
     started = fired & full
     charges = state.charges - fired.astype(jnp.int32)
-    recharge = jnp.where(started, cool, state.recharge_left)
+    # The cool time starts when the cast completed, which may be before the end of this
+    # sub-step (cast_left < 0 by the overshoot): credit the overshoot to the cool time.
+    recharge = jnp.where(started, cool + jnp.minimum(cast_left, 0.0), state.recharge_left)
     recharge = jnp.where((charges < sk.charge) & ~started, recharge - dt, recharge)
-    back = (charges < sk.charge) & (recharge <= EPS)
+    back = (charges < sk.charge) & (recharge <= TIME_EPS)
     charges = charges + back.astype(jnp.int32)
     recharge = jnp.where(back & (charges < sk.charge), recharge + cool, recharge)
-    mana = state.mana - jnp.sum(jnp.where(fired, sk.cost, 0.0), axis=-1)
-    casting = state.casting & ~fired & state.alive[:, None]
+    casting = state.casting & ~done & state.alive[:, None]
     return state.replace(cast_left=cast_left, casting=casting, charges=charges,
                          recharge_left=recharge, mana=mana), fired
 
@@ -220,7 +233,7 @@ def effect_table(params: Params) -> jnp.ndarray:
 
     cols = [
         base, heal, per_unit(st.critical / 100.0), per_unit(st.crit_multiplier),
-        per_unit(st.back_attack_multiplier * (1.0 + st.mastery / 100.0)),
+        per_unit(jnp.where(params.team == 0, st.back_attack_multiplier * (1.0 + st.mastery / 100.0), 1.0)),
         per_unit(1.0 + st.versatility / 100.0), per_unit(st.agility), per_unit(params.team.astype(jnp.float32)),
         per_slot(sk.affect_enemy, 1.0), per_slot(sk.affect_ally, 0.0), per_slot(sk.projectile_speed, 0.0),
         per_slot(sk.projectile_radius, 0.0), per_slot(sk.hit_count, 1.0),
@@ -333,9 +346,10 @@ def resolve_hits(key, state: State, params: Params, table: jnp.ndarray, hits, so
         * jnp.where(parry, PARRY_FACTOR, 1.0)
     )
     enemy = f[:, F_TEAM, None] != params.team[None].astype(jnp.float32)
-    harm = hits & enemy & ~dodge
+    # Homing and instant hits land on their target whatever the flags: gate them here.
+    harm = hits & enemy & (f[:, F_ENEMY, None] > 0) & ~dodge
     damage = jnp.where(harm, jnp.floor(f[:, F_BASE, None] * mult + 1e-3), 0.0)  # [E, U]
-    heal = jnp.where(hits & ~enemy, f[:, F_HEAL, None], 0.0)
+    heal = jnp.where(hits & ~enemy & (f[:, F_ALLY, None] > 0), f[:, F_HEAL, None], 0.0)
     # Materialise once: otherwise XLA:CPU recomputes the whole chain inside every reduction below.
     damage, heal, back = jax.lax.optimization_barrier((damage, heal, back))
 
@@ -365,9 +379,11 @@ def basic_attacks(state: State, params: Params, dt: float):
     st = params.stats
     t = state.target
     d = jnp.linalg.norm(pick(state.pos, t) - state.pos, axis=-1) - st.radius - pick(st.radius, t)
-    ready = state.basic_cooldown <= EPS
+    # Time passes first, so that the next attack comes 1 / attack_speed after this one.
+    left = jnp.maximum(state.basic_cooldown - dt, 0.0)
+    ready = left <= TIME_EPS
     go = state.alive & pick(state.alive, t) & (st.attack_power > 0) & (d <= st.attack_range) & ready
-    cooldown = jnp.where(go, 1.0 / st.attack_speed, jnp.maximum(state.basic_cooldown - dt, 0.0))
+    cooldown = jnp.where(go, 1.0 / st.attack_speed, left)
     hits = go[:, None] & jax.nn.one_hot(t, t.shape[0], dtype=bool)
     return state.replace(basic_cooldown=cooldown), hits
 

@@ -65,7 +65,7 @@ def observe(state: State, params: Params, table: jax.Array | None = None) -> Obs
             cast_time / CAST_SCALE,
         ],
         axis=-1,
-    ) * (sk.in_use > 0).repeat(5, axis=-1)  # [U, 5S]
+    ) * jnp.tile(sk.in_use > 0, (1, 5))  # [U, 5S], feature-major: mask every feature of unused slots
     heading = jnp.stack([jnp.cos(state.heading), jnp.sin(state.heading)], axis=-1)
     unit_core = jnp.concatenate([pos, heading, vel, hp[:, None], mana[:, None]], axis=-1)  # [U, 8]
     casting_any = jnp.any(state.casting, axis=-1)
@@ -93,13 +93,14 @@ def observe(state: State, params: Params, table: jax.Array | None = None) -> Obs
     others = jnp.array([[j for j in range(n_players) if j != i] for i in range(n_players)], jnp.int32).reshape(
         n_players, n_players - 1
     )
+    used = sk.in_use > 0  # unused slots read as zeros, as in the self features
     mate_feats = jnp.concatenate(
         [pos[others] - pos[:n_players, None], vel[others], hp[others][..., None], state.alive[others][..., None],
-         sk.range[others] / RANGE_SCALE,
-         skill_damage(params)[others] / DAMAGE_SCALE, cast_time[others] / CAST_SCALE, mana[others][..., None]],
+         (used * sk.range)[others] / RANGE_SCALE, (used * skill_damage(params))[others] / DAMAGE_SCALE,
+         (used * cast_time)[others] / CAST_SCALE, mana[others][..., None]],
         axis=-1,
     )
-    mate_mask = state.alive[others]
+    mate_mask = state.alive[others] & alive_p[:, None]  # a dead viewer sees nothing
     mate_feats = mate_feats * mate_mask[..., None]
 
     # Hostile projectiles: the K nearest live ones owned by the boss's team.
@@ -126,7 +127,7 @@ def observe(state: State, params: Params, table: jax.Array | None = None) -> Obs
         self_features=self_features,
         boss=boss_core * alive_p[:, None],
         teammates=mate_feats,
-        teammate_mask=mate_mask & alive_p[:, None],
+        teammate_mask=mate_mask,
         projectiles=pfeat,
         projectile_mask=pmask,
         walls=walls * alive_p[:, None],

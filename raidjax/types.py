@@ -42,14 +42,14 @@ class EnvConfig:
         max_decisions: episode limit in decisions (2000 = 200 s).
         hurtbox_scale: projectiles and areas hit a unit within ``hurtbox_scale x radius`` of its
             centre (plus the projectile's radius); bodies use the full radius against walls. The
-            calibration knob of docs/GAME.md (0.64 reproduces the paper's PT-HR win rates).
+            calibration knob of docs/GAME.md (0.60 reproduces the paper's PT-HR win rates).
     """
 
     n_substeps: int = 1
     max_projectiles: int = 16
     obs_projectiles: int = 4
     max_decisions: int = 2000
-    hurtbox_scale: float = 0.64
+    hurtbox_scale: float = 0.60
 
 
 @struct.dataclass

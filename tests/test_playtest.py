@@ -1,0 +1,105 @@
+"""Batched playtesting and the scripted policies (SPEC §9).
+
+Three compilations of ``playtest`` (unbatched, per-game and per-group params); the per-game and
+per-group contents are chosen so that every game's outcome is certain:
+WIN: the boss has 1 HP and does no damage; LOSS: players have 1 HP and do no damage;
+DRAW: nobody can hurt anybody (ends at ``max_decisions``).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import ACTION_HEURISTIC, RESET
+
+import raidjax
+from raidjax import policies
+from raidjax.types import EnvConfig
+
+N = 4
+SHORT = EnvConfig(max_decisions=200)
+HARMLESS_BOSS = {"skill1.coefficient": 0.0, "skill2.coefficient": 0.0}
+WIN = raidjax.make_params(config=SHORT, boss_overrides={"max_hp": 1, **HARMLESS_BOSS})
+LOSS = raidjax.make_params(config=SHORT, max_hp=1, **{"skill1.coefficient": 0.0})
+DRAW = raidjax.make_params(config=SHORT, boss_overrides=HARMLESS_BOSS, **{"skill1.coefficient": 0.0})
+
+
+def stack(*trees):
+    return jax.tree.map(lambda *x: jnp.stack(x), *trees)
+
+
+@pytest.fixture(scope="module")
+def reference_results(ref_params):
+    return jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, policies.heuristic, N))
+
+
+def test_reference_playtest_results_are_consistent(reference_results):
+    r = reference_results
+    assert set(r) == {"outcome", "length", "damage", "back_attacks", "deaths", "alive", "dropped", "boss_hp"}
+    assert r["outcome"].shape == (N,) and r["damage"].shape == (N, 3) and r["alive"].shape == (N, 3)
+    assert set(r["outcome"].tolist()) <= {1, 2}  # every reference game ends by a win or a loss
+    assert (r["length"] < 2000).all() and (r["length"] > 0).all()  # ended early
+    assert (r["dropped"] == 0).all()  # the pool never overflows in the reference setting
+    np.testing.assert_array_equal(r["deaths"], 3 - r["alive"].sum(-1))
+    np.testing.assert_array_equal(r["outcome"] == 2, r["deaths"] == 3)
+    np.testing.assert_array_equal(r["outcome"] == 1, r["boss_hp"] <= 0)
+    lost = r["outcome"] != 1
+    # Damage to the boss adds up to the HP it lost; hits are 50 (front) or 60 (back).
+    np.testing.assert_allclose(r["damage"].sum(-1)[lost], (1000.0 - r["boss_hp"])[lost])
+    back = r["back_attacks"].sum(-1)
+    assert ((r["damage"].sum(-1) - 60 * back) % 50 == 0).all()
+
+
+def test_win_rate_is_mean_of_outcomes(reference_results):
+    r = reference_results
+    assert float(raidjax.win_rate(r)) == pytest.approx(float(np.mean(r["outcome"] == 1)))
+    fake = {"outcome": jnp.array([1, 2, 3, 1, 1])}
+    assert float(raidjax.win_rate(fake)) == pytest.approx(0.6)  # draws count as losses
+
+
+def test_playtest_is_deterministic_per_key(ref_params, reference_results):
+    again = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, policies.heuristic, N))
+    for k in again:
+        np.testing.assert_array_equal(again[k], reference_results[k])
+
+
+def test_per_game_params():
+    r = jax.device_get(raidjax.playtest(jax.random.key(1), stack(WIN, LOSS, DRAW, WIN), policies.heuristic, N))
+    assert r["outcome"].tolist() == [1, 2, 3, 1]
+    assert r["length"][2] == 200  # the draw runs to max_decisions
+    assert (r["length"][[0, 1, 3]] < 200).all()
+    assert r["boss_hp"][2] == 1000.0 and r["deaths"][2] == 0
+
+
+def test_per_group_params():
+    r = jax.device_get(raidjax.playtest(jax.random.key(2), stack(WIN, LOSS), policies.heuristic, N))
+    assert r["outcome"].tolist() == [1, 1, 2, 2]  # game g uses content g // (N / G)
+
+
+# --- policies ------------------------------------------------------------------------------
+
+RANDOM = jax.jit(jax.vmap(policies.random, in_axes=(0, None, None, None)))
+
+
+def test_random_policy_is_uniform_over_moves_and_own_cast_slots(ref_params):
+    obs, s = RESET(jax.random.key(0), ref_params)
+    a = np.asarray(RANDOM(jax.random.split(jax.random.key(3), 4000), obs, s, ref_params))
+    assert a.min() == 0 and a.max() == 7  # 0-7 for the reference mage (one skill slot)
+    freq = np.bincount(a.ravel(), minlength=8) / a.size
+    np.testing.assert_allclose(freq, 1 / 8, atol=0.02)
+    # A unit with three active slots: 0-9.
+    bm = raidjax.make_params(players="battle_mage")
+    b = np.asarray(RANDOM(jax.random.split(jax.random.key(4), 4000), obs, s, bm))
+    np.testing.assert_allclose(np.bincount(b.ravel(), minlength=10) / b.size, 1 / 10, atol=0.02)
+    # Passive slots are not actions (priest: heal, holy bolt, passive renew -> 0-8).
+    pr = raidjax.make_params(players="priest")
+    c = np.asarray(RANDOM(jax.random.split(jax.random.key(5), 2000), obs, s, pr))
+    assert c.max() == 8
+
+
+def test_heuristic_and_noop_policies(ref_params):
+    obs, s = RESET(jax.random.key(0), ref_params)
+    assert policies.heuristic(jax.random.key(0), obs, s, ref_params).tolist() == [ACTION_HEURISTIC] * 3
+    assert policies.noop(jax.random.key(0), obs, s, ref_params).tolist() == [0, 0, 0]

@@ -1,0 +1,166 @@
+"""Benchmark 2 (SPEC §11): generation runs and the controllability / diversity / yield metrics,
+plus the playtest-noise measurement.
+
+``generate`` runs any generator policy ``policy(policy_params, key, obs, state, params) ->
+int32[4]`` (``raidjax.pcg.random_policy``, ``heuristic_policy`` or a trained PPO policy) for E
+episodes per target, all episodes in parallel, and measures each final skill with 300 games.
+The metric functions are plain numpy on the returned arrays.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from raidjax import pcg
+
+TARGETS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
+
+
+@partial(jax.jit, static_argnames=("policy", "episodes", "eval_games"))
+def _generate(key, policy, policy_params, params: pcg.PCGParams, targets, episodes: int, eval_games: int):
+    t = jnp.repeat(targets, episodes)
+    n = t.shape[0]
+    k_reset, k_loop, k_eval = jax.random.split(key, 3)
+    obs, state = jax.vmap(lambda k, tt: pcg.reset(k, params, tt))(jax.random.split(k_reset, n), t)
+
+    def body(carry):
+        i, obs, state = carry
+        ks = jax.random.split(jax.random.fold_in(k_loop, i), 2 * n).reshape(2, n)
+        act = jax.vmap(lambda k, o, s: policy(policy_params, k, o, s, params))(ks[0], obs, state)
+        obs2, state2, _, _, _ = jax.vmap(lambda k, s, a: pcg.step(k, s, a, params))(ks[1], state, act)
+        keep = lambda old, new: jnp.where(state.done.reshape((-1,) + (1,) * (new.ndim - 1)), old, new)
+        return i + 1, keep(obs, obs2), jax.tree.map(keep, state, state2)
+
+    def cond(carry):
+        i, _, state = carry
+        return (i < params.max_edits) & ~jnp.all(state.done)
+
+    _, _, state = jax.lax.while_loop(cond, body, (jnp.int32(0), obs, state))
+    final = jax.vmap(lambda k, s: pcg.measure(k, params, s, eval_games))(jax.random.split(k_eval, n), state.skill)
+    return {"target": t, "skill": state.skill, "win_rate": final, "gen_win_rate": state.win_rate,
+            "edits": state.edits, "reached": state.reached}
+
+
+def generate(key: jax.Array, policy, params: pcg.PCGParams, *, policy_params=None, targets=TARGETS,
+             episodes: int = 10, eval_games: int = 300) -> dict[str, np.ndarray]:
+    """Run a generator for ``episodes`` episodes per target, in parallel.
+
+    Args:
+        key: PRNG key.
+        policy: ``policy(policy_params, key, obs, state, params) -> int32[4]`` (hashable).
+        params: ``PCGParams`` (its ``n_games`` is the generator's per-edit measurement).
+        policy_params: pytree passed to ``policy`` (network weights; ``None`` for baselines).
+        targets: target win rates (T of them).
+        episodes: E, episodes per target.
+        eval_games: games measuring each final skill (300).
+
+    Returns:
+        numpy dict over ``n = T * E`` episodes: ``target`` [n], ``skill`` [n, 4], ``win_rate`` [n]
+        (``eval_games``-game win rate of the final skill), ``gen_win_rate`` [n] (the generator's
+        last measurement), ``edits`` [n], ``reached`` [n] (the band was reached).
+    """
+    out = _generate(key, policy, policy_params, params, jnp.asarray(targets, jnp.float32), episodes, eval_games)
+    return {k: np.asarray(v) for k, v in jax.device_get(out).items()}
+
+
+def controllability(gen: dict, min_edits: int = 2) -> dict:
+    """Controllability (SPEC §11) over episodes with at least ``min_edits`` edits.
+
+    Args:
+        gen: ``generate`` output (``target``, ``win_rate``, ``edits`` [n]).
+        min_edits: episodes with fewer edits are left out (the paper's ">= 2 edits").
+
+    Returns:
+        ``{"per_target": {t: {"n", "wc_mean", "wc_sd", "err_mean", "err_sd"}}, "n", "wc_mean",
+        "err_mean", "err_sd", "mean_of_target_means"}`` (floats; SD with ddof 0).
+    """
+    keep = np.asarray(gen["edits"]) >= min_edits
+    t, w = np.asarray(gen["target"])[keep], np.asarray(gen["win_rate"])[keep]
+    err = np.abs(t - w)
+    per = {}
+    for tv in np.unique(np.round(t, 6)):
+        m = np.isclose(t, tv)
+        per[float(tv)] = {"n": int(m.sum()), "wc_mean": float(w[m].mean()), "wc_sd": float(w[m].std()),
+                          "err_mean": float(err[m].mean()), "err_sd": float(err[m].std())}
+    return {"per_target": per, "n": int(keep.sum()), "wc_mean": float(w.mean()) if w.size else float("nan"),
+            "err_mean": float(err.mean()) if err.size else float("nan"),
+            "err_sd": float(err.std()) if err.size else float("nan"),
+            "mean_of_target_means": float(np.mean([p["err_mean"] for p in per.values()])) if per else float("nan")}
+
+
+def first_pc(x: np.ndarray) -> np.ndarray:
+    """First principal axis ``float[d]`` of the rows of ``x`` ``[n, d]`` (centred SVD)."""
+    xc = x - x.mean(0)
+    _, _, vt = np.linalg.svd(xc, full_matrices=False)
+    return vt[0]
+
+
+def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, threshold: float = 0.1) -> dict:
+    """Diversity (SPEC §11): keep skills with error < ``threshold``, min-max normalise the 4 parameters
+    over the pooled kept set, fit PCA on it, then per group the SD of each parameter and of PC1.
+
+    Args:
+        skills: ``[n, 4]`` generated skills (any groups pooled, e.g. all methods and targets).
+        errors: ``[n]`` ``|W_t - W_c|``.
+        groups: ``[n]`` hashable labels, e.g. ``"PPO|0.3"``.
+        threshold: error cut-off.
+
+    Returns:
+        ``{group: {"n", "param_sd": [4], "pc1_sd"}}`` (SD ddof 0; NaN for groups with < 2 kept).
+    """
+    skills, errors, groups = np.asarray(skills, float), np.asarray(errors), np.asarray(groups)
+    keep = errors < threshold
+    x = skills[keep]
+    out = {}
+    if x.shape[0] == 0:
+        return out
+    lo, hi = x.min(0), x.max(0)
+    xn = (x - lo) / np.where(hi > lo, hi - lo, 1.0)
+    pc = first_pc(xn) if x.shape[0] > 1 else np.zeros(x.shape[1])
+    proj = (xn - xn.mean(0)) @ pc
+    for g in np.unique(groups[keep]):
+        m = groups[keep] == g
+        n = int(m.sum())
+        out[g] = {"n": n, "param_sd": (xn[m].std(0) if n > 1 else np.full(4, np.nan)).tolist(),
+                  "pc1_sd": float(proj[m].std()) if n > 1 else float("nan")}
+    return out
+
+
+def yield_stats(gen: dict) -> dict:
+    """Yield rate (share of episodes whose generator measurement reached the band) and edits per
+    episode (mean, SD). Returns floats."""
+    e = np.asarray(gen["edits"], float)
+    return {"yield": float(np.mean(gen["reached"])), "edits_mean": float(e.mean()), "edits_sd": float(e.std())}
+
+
+@partial(jax.jit, static_argnames=("n_games", "repeats"))
+def _rates(key, game, skill, n_games: int, repeats: int):
+    keys = jax.random.split(key, repeats)
+    return jax.vmap(lambda k: jnp.mean(pcg.play_outcomes(k, game, skill, n_games).astype(jnp.float32)))(keys)
+
+
+def win_rate_noise(key: jax.Array, skill, n_games_list=(25, 50, 100, 300), repeats: int = 20) -> list[dict]:
+    """How the standard error of a measured win rate shrinks with the number of playtest games.
+
+    Args:
+        key: PRNG key.
+        skill: ``float32[4]`` skill to measure.
+        n_games_list: playtest sizes N.
+        repeats: independent measurements per N.
+
+    Returns:
+        One dict per N: ``n_games``, ``mean`` win rate, ``se_measured`` (SD over repeats) and
+        ``se_binomial`` (``sqrt(p (1 - p) / N)`` at the pooled ``p``).
+    """
+    game, skill = pcg.base_game(), jnp.asarray(skill, jnp.float32)
+    out = []
+    for i, n in enumerate(n_games_list):
+        r = np.asarray(_rates(jax.random.fold_in(key, i), game, skill, int(n), repeats))
+        p = float(r.mean())
+        out.append({"n_games": int(n), "mean": p, "se_measured": float(r.std(ddof=1)),
+                    "se_binomial": float(np.sqrt(p * (1 - p) / n))})
+    return out

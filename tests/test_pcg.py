@@ -1,0 +1,165 @@
+"""Tests of the content-generation environment, baselines, metrics and PPO-PCGRL (SPEC §10–11)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from raidjax import pcg
+from raidjax import pcg_metrics as pm
+
+LOW, HIGH = np.array(pcg.LOW), np.array(pcg.HIGH)
+TICK = (HIGH - LOW) / 6
+
+
+def _state(skill=(10.0, 0.55, 1.0, 0.75), target=0.5, w=0.3, edits=0):
+    return pcg.PCGState(skill=jnp.asarray(skill, jnp.float32), target=jnp.float32(target), win_rate=jnp.float32(w),
+                        edits=jnp.int32(edits), done=jnp.bool_(False), reached=jnp.bool_(False))
+
+
+def test_ticks_and_clipping():
+    np.testing.assert_allclose(np.asarray(pcg.tick()), [19 / 6, 0.1 / 6, 1 / 6, 0.5 / 6], rtol=1e-6)
+    mid = jnp.asarray((10.0, 0.55, 1.0, 0.75))
+    for c, frac in enumerate((-1.0, -0.5, 0.0, 0.5, 1.0)):
+        out = np.asarray(pcg.apply_action(mid, jnp.full(4, c, jnp.int32)))
+        np.testing.assert_allclose(out, np.asarray(mid) + frac * TICK, rtol=1e-6)
+    # Mixed branches.
+    out = np.asarray(pcg.apply_action(mid, jnp.array([0, 1, 3, 4])))
+    np.testing.assert_allclose(out, np.asarray(mid) + np.array([-1, -0.5, 0.5, 1]) * TICK, rtol=1e-6)
+    # Clipped to bounds.
+    np.testing.assert_allclose(np.asarray(pcg.apply_action(jnp.asarray(HIGH - 0.1 * TICK), jnp.full(4, 4))), HIGH)
+    np.testing.assert_allclose(np.asarray(pcg.apply_action(jnp.asarray(LOW + 0.1 * TICK), jnp.full(4, 0))), LOW)
+
+
+@pytest.mark.parametrize("w, target, easier", [(0.2, 0.6, True), (0.8, 0.3, False)])
+def test_heuristic_moves_each_parameter_the_right_way(w, target, easier):
+    p = pcg.make_params(n_games=4)
+    st = _state(target=target, w=w)
+    seen = set()
+    for i in range(64):
+        a = np.asarray(pcg.heuristic_policy(None, jax.random.key(i), None, st, p))
+        moved = np.flatnonzero(a != pcg.NOOP_ACTION)
+        assert moved.size == 1  # one parameter, half a tick
+        j = int(moved[0])
+        seen.add(j)
+        sign = pcg.EASIER[j] * (1 if easier else -1)
+        assert a[j] == pcg.NOOP_ACTION + sign and abs(a[j] - 2) == 1
+        new = np.asarray(pcg.apply_action(st.skill, jnp.asarray(a)))
+        np.testing.assert_allclose(new[j] - np.asarray(st.skill)[j], 0.5 * TICK[j] * sign, rtol=1e-5)
+    assert seen == {0, 1, 2, 3}
+    # Easier = range up, cool down, cast down, coefficient up.
+    assert pcg.EASIER == (1.0, -1.0, -1.0, 1.0)
+
+
+def test_heuristic_idle_in_band_and_random_policy_range():
+    p = pcg.make_params(n_games=4)
+    a = pcg.heuristic_policy(None, jax.random.key(0), None, _state(target=0.5, w=0.51), p)
+    assert (np.asarray(a) == pcg.NOOP_ACTION).all()
+    acts = np.stack([np.asarray(pcg.random_policy(None, jax.random.key(i), None, None, p)) for i in range(50)])
+    assert acts.min() == 0 and acts.max() == 4 and acts.shape == (50, 4)
+
+
+def test_reward_sign_and_scale_on_win_rate_sequences():
+    p = pcg.make_params(n_games=4, band=0.02, strict_length=True)
+    st = _state(target=0.5, w=0.1)  # w_0 measured at reset: no reward for it
+    rewards = []
+    for w in (0.3, 0.45, 0.7, 0.5, 0.5):
+        st, r = pcg.advance(st, st.skill, jnp.float32(w), p)
+        rewards.append(float(r))
+    np.testing.assert_allclose(rewards, [20.0, 15.0, -15.0, 20.0, 0.0], atol=1e-4)
+    assert float(pcg.reward_fn(0.5, 0.1, 0.5)) == pytest.approx(40.0, abs=1e-4)
+    # The rewards telescope: sum = (|t - w_0| - |t - w_last|) * 100.
+    assert sum(rewards) == pytest.approx(40.0, abs=1e-3)
+
+
+def test_early_termination_and_strict_length():
+    loose = pcg.make_params(n_games=4, max_edits=5)
+    strict = pcg.make_params(n_games=4, max_edits=5, strict_length=True)
+    st = _state(target=0.5, w=0.1)
+    s1, _ = pcg.advance(st, st.skill, jnp.float32(0.3), loose)
+    assert not bool(s1.done)
+    s2, _ = pcg.advance(s1, st.skill, jnp.float32(0.52), loose)  # |w - t| = 0.02 <= band
+    assert bool(s2.done) and bool(s2.reached) and int(s2.edits) == 2
+    s = st
+    for i in range(5):
+        s, _ = pcg.advance(s, st.skill, jnp.float32(0.5), strict)
+        assert bool(s.done) == (i == 4) and bool(s.reached)
+    s = st
+    for _ in range(5):
+        s, _ = pcg.advance(s, st.skill, jnp.float32(0.9), loose)
+    assert bool(s.done) and not bool(s.reached)
+
+
+def test_observation_modes():
+    st = _state(skill=pcg.LOW, target=0.4, w=0.2)
+    o = pcg.observe(st, pcg.make_params(n_games=4))
+    np.testing.assert_allclose(np.asarray(o), [0, 0, 0, 0, 0.4, 0.2], atol=1e-6)
+    assert pcg.observe(st, pcg.make_params(n_games=4, observe_target=False)).shape == (4,)
+
+
+def test_win_rate_is_mean_of_game_outcomes():
+    p = pcg.make_params(n_games=8)
+    skill = jnp.asarray((20.0, 0.5, 0.5, 0.6))
+    key = jax.random.key(3)
+    wins = np.asarray(pcg.play_outcomes(key, p.game, skill, 8))
+    assert wins.shape == (8,) and wins.dtype == bool
+    assert float(pcg.measure(key, p, skill)) == pytest.approx(wins.mean())
+    # The skill really is in every player's slot 1, speed 10 and cost 1.
+    g = pcg.skill_params(p.game, skill)
+    np.testing.assert_allclose(np.asarray(g.skills.range[:3, 0]), 20.0)
+    np.testing.assert_allclose(np.asarray(g.skills.projectile_speed[:3, 0]), 10.0)
+    np.testing.assert_allclose(np.asarray(g.skills.cost[:3, 0]), 1.0)
+    assert float(g.skills.range[3, 0]) == float(p.game.skills.range[3, 0])  # boss untouched
+
+
+def test_controllability_on_hand_set():
+    gen = {"target": np.array([0.1, 0.1, 0.5, 0.5, 0.5]), "win_rate": np.array([0.2, 0.1, 0.3, 0.6, 0.0]),
+           "edits": np.array([3, 5, 2, 10, 1])}
+    c = pm.controllability(gen)  # the last episode (1 edit) is left out
+    assert c["n"] == 4
+    assert c["per_target"][0.1]["wc_mean"] == pytest.approx(0.15)
+    assert c["per_target"][0.1]["err_mean"] == pytest.approx(0.05)
+    assert c["per_target"][0.1]["err_sd"] == pytest.approx(0.05)
+    assert c["per_target"][0.5]["err_mean"] == pytest.approx(0.15)
+    assert c["per_target"][0.5]["wc_sd"] == pytest.approx(0.15)
+    assert c["err_mean"] == pytest.approx(0.1)
+
+
+def test_diversity_on_hand_set():
+    skills = np.array([[1.0, 0.5, 0.5, 0.5], [20.0, 0.5, 0.5, 0.5], [10.5, 0.5, 0.5, 0.5], [5.0, 0.6, 1.5, 1.0]])
+    errors = np.array([0.0, 0.05, 0.09, 0.5])  # the last one is dropped (error >= 0.1)
+    d = pm.diversity(skills, errors, np.array(["a", "a", "b", "a"]))
+    assert set(d) == {"a", "b"} and d["a"]["n"] == 2 and d["b"]["n"] == 1
+    # Kept set varies only in range: normalised ranges 0 and 1 in group a -> SD 0.5; PC1 = range.
+    np.testing.assert_allclose(d["a"]["param_sd"], [0.5, 0, 0, 0], atol=1e-9)
+    assert d["a"]["pc1_sd"] == pytest.approx(0.5)
+    assert np.isnan(d["b"]["pc1_sd"])
+    y = pm.yield_stats({"reached": np.array([True, False]), "edits": np.array([4, 40])})
+    assert y == {"yield": 0.5, "edits_mean": 22.0, "edits_sd": 18.0}
+
+
+def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path):
+    import orbax.checkpoint as ocp
+
+    from trainers.ppo_pcgrl import Config, make_policy, make_train
+
+    cfg = Config(n_envs=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=(8,), n_games=2,
+                 max_edits=2)
+    train = make_train(cfg)
+    runner, metrics = jax.jit(train)(jax.random.key(0))
+    assert metrics["reward"].shape == (2,) and np.isfinite(np.asarray(metrics["pg_loss"])).all()
+    assert int(runner["update"]) == 2
+    assert int(np.asarray(metrics["episodes"]).sum()) >= 1  # max_edits=2 forces episode ends
+    mgr = ocp.CheckpointManager(tmp_path / "ckpt", options=ocp.CheckpointManagerOptions(
+        max_to_keep=1, enable_async_checkpointing=False))
+    mgr.save(2, args=ocp.args.StandardSave(runner))
+    abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, runner)
+    back = mgr.restore(mgr.latest_step(), args=ocp.args.StandardRestore(abstract))
+    for a, b in zip(jax.tree.leaves(runner), jax.tree.leaves(back), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    policy = make_policy((8,), True)
+    obs = pcg.observe(_state(), pcg.make_params(n_games=2))
+    a = policy(back["params"], jax.random.key(1), obs, None, None)
+    assert a.shape == (4,) and a.dtype == jnp.int32

@@ -1,0 +1,190 @@
+"""Command line of ``trainers.ppo_pcgrl``: chunked training with progress, CSV/JSONL metrics, atomic
+orbax checkpoints and ``--resume``, then the controllability evaluation of PPO, PCG-HR and PCG-RD.
+
+    python -m trainers.ppo_pcgrl --preset cpu --total-steps 8192 --seeds 1 --out runs/ppo_cpu
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import orbax.checkpoint as ocp
+
+from raidjax import pcg
+from raidjax import pcg_metrics as pm
+from trainers.ppo_pcgrl import PRESETS, get_config, make_policy, make_train
+
+
+def _args(argv=None):
+    ap = argparse.ArgumentParser(description="PPO-PCGRL on raidjax.pcg")
+    ap.add_argument("--preset", choices=sorted(PRESETS), default="cpu")
+    ap.add_argument("--total-steps", type=int, default=None)
+    ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--out", default="runs/ppo_pcgrl")
+    ap.add_argument("--resume", action="store_true")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--n-games", type=int, default=None, help="playtest games per training measurement")
+    ap.add_argument("--n-envs", type=int, default=None)
+    ap.add_argument("--lr", type=float, default=None)
+    ap.add_argument("--edit-cost", type=float, default=None, help="learner penalty per tick moved")
+    ap.add_argument("--chunk", type=int, default=4, help="updates per jitted chunk (progress/checkpoint period)")
+    ap.add_argument("--eval-episodes", type=int, default=8, help="episodes per target and method")
+    ap.add_argument("--eval-gen-games", type=int, default=100, help="games per generator measurement in eval")
+    ap.add_argument("--eval-games", type=int, default=300, help="games measuring each final skill")
+    ap.add_argument("--greedy", action="store_true", help="argmax actions in evaluation")
+    ap.add_argument("--no-baselines", action="store_true")
+    return ap.parse_args(argv)
+
+
+def _groups(config, seeds: int):
+    """Target pairs ``float32[G, 2]`` and labels: one group per seed (target observed) or per
+    (target, seed) (one model per fixed target, the paper's setting)."""
+    if config.observe_target:
+        return np.tile(np.asarray(config.target, np.float32), (seeds, 1)), [(None, s) for s in range(seeds)]
+    pairs = [(t, s) for t in pm.TARGETS for s in range(seeds)]
+    return np.asarray([[t, t] for t, _ in pairs], np.float32), pairs
+
+
+def _write_metrics(out: Path, start_update: int, metrics: dict, steps_per_update: int) -> None:
+    m = jax.device_get(metrics)  # leaves [G, n]
+    n = next(iter(m.values())).shape[1]
+    new = not (out / "metrics.csv").exists()
+    with open(out / "metrics.csv", "a", newline="") as fc, open(out / "metrics.jsonl", "a") as fj:
+        w = csv.writer(fc)
+        keys = sorted(m)
+        if new:
+            w.writerow(["update", "env_steps"] + keys)
+        for i in range(n):
+            u = start_update + i + 1
+            row = {k: float(np.nanmean(m[k][:, i])) if np.isfinite(m[k][:, i]).any() else float("nan") for k in keys}
+            w.writerow([u, u * steps_per_update] + [row[k] for k in keys])
+            fj.write(json.dumps({"update": u, "env_steps": u * steps_per_update, **row,
+                                 "final_error_per_group": [float(x) for x in m["final_error"][:, i]]}) + "\n")
+
+
+def evaluate(key, config, runner_params, labels, args) -> dict:
+    """Controllability/diversity of PPO (every trained group), PCG-HR and PCG-RD on one protocol.
+
+    Returns a dict of per-method ``generate`` outputs (numpy arrays pooled over groups)."""
+    p = pcg.make_params(n_games=args.eval_gen_games, max_edits=config.max_edits,
+                        strict_length=config.strict_length, observe_target=config.observe_target)
+    policy = make_policy(tuple(config.hidden), args.greedy)
+    n_seeds = max(s for _, s in labels) + 1
+    eps = max(1, args.eval_episodes // n_seeds)
+    parts = []
+    for g, (t, _) in enumerate(labels):
+        params_g = jax.tree.map(lambda x, g=g: x[g], runner_params)
+        targets = pm.TARGETS if t is None else (t,)
+        parts.append(pm.generate(jax.random.fold_in(key, g), policy, p, policy_params=params_g, targets=targets,
+                                 episodes=eps, eval_games=args.eval_games))
+    gens = {"PPO": {k: np.concatenate([d[k] for d in parts]) for k in parts[0]}}
+    if not args.no_baselines:
+        for i, (name, pol) in enumerate((("PCG-HR", pcg.heuristic_policy), ("PCG-RD", pcg.random_policy))):
+            gens[name] = pm.generate(jax.random.fold_in(key, 10_000 + i), pol, p, episodes=args.eval_episodes,
+                                     eval_games=args.eval_games)
+    return gens
+
+
+def summarize(gens: dict) -> dict:
+    """Controllability, yield and diversity (pooled normalisation/PCA over all methods) per method."""
+    skills, errs, groups = [], [], []
+    for name, g in gens.items():
+        skills.append(g["skill"])
+        errs.append(np.abs(g["target"] - g["win_rate"]))
+        groups += [f"{name}|{t:.1f}" for t in g["target"]]
+    div = pm.diversity(np.concatenate(skills), np.concatenate(errs), np.asarray(groups))
+    out = {}
+    for name, g in gens.items():
+        c = pm.controllability(g)
+        d = [v for k, v in div.items() if k.startswith(name + "|") and np.isfinite(v["pc1_sd"])]
+        out[name] = {"controllability": c, **pm.yield_stats(g),
+                     "pc1_sd_mean": float(np.mean([v["pc1_sd"] for v in d])) if d else float("nan"),
+                     "param_sd_mean": np.nanmean([v["param_sd"] for v in d], 0).tolist() if d else None,
+                     "diversity": {k.split("|")[1]: v for k, v in div.items() if k.startswith(name + "|")}}
+    return out
+
+
+def main(argv=None) -> None:
+    """Train, checkpoint, evaluate; the last stdout line is one JSON object."""
+    args = _args(argv)
+    t_start = time.perf_counter()
+    config = get_config(args.preset, total_steps=args.total_steps, n_games=args.n_games, n_envs=args.n_envs,
+                        lr=args.lr, edit_cost=args.edit_cost)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.json").write_text(json.dumps({**vars(args), "config": config.__dict__}, default=str, indent=1))
+    train = make_train(config)
+    pairs, labels = _groups(config, args.seeds)
+    G, chunk = len(labels), max(1, args.chunk)
+    keys = jax.random.split(jax.random.key(args.seed), G)
+    tg = jnp.asarray(pairs)
+    init_v = jax.jit(jax.vmap(train.init))
+    runner = init_v(keys, tg)
+
+    @jax.jit
+    def run_chunk(runner, tg):
+        def one(r, t):
+            return jax.lax.scan(lambda rr, _: train.update(rr, t), r, None, chunk)
+        return jax.vmap(one)(runner, tg)
+
+    mgr = ocp.CheckpointManager(
+        (out / "ckpt").absolute(),
+        options=ocp.CheckpointManagerOptions(max_to_keep=2, enable_async_checkpointing=False))
+    start = 0
+    if args.resume and mgr.latest_step() is not None:
+        abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, runner)
+        runner = mgr.restore(mgr.latest_step(), args=ocp.args.StandardRestore(abstract))
+        start = int(np.asarray(runner["update"]).reshape(-1)[0])
+        print(f"resumed from update {start}", flush=True)
+    steps_per_update = config.n_envs * config.n_steps
+    total_updates = config.n_updates
+    print(f"preset={args.preset} groups={G} updates={total_updates} steps/update={steps_per_update} "
+          f"n_games={config.n_games}", flush=True)
+    t_train = time.perf_counter()
+    u, done_steps = start, 0
+    while u < total_updates:
+        t0 = time.perf_counter()
+        runner, metrics = run_chunk(runner, tg)
+        jax.block_until_ready(runner)
+        dt = time.perf_counter() - t0
+        _write_metrics(out, u, metrics, steps_per_update)
+        u += chunk
+        done_steps += chunk * steps_per_update
+        mgr.save(u, args=ocp.args.StandardSave(runner))
+        rate = done_steps * G / max(time.perf_counter() - t_train, 1e-9)
+        eta = (total_updates - u) * steps_per_update * G / max(rate, 1e-9)
+        m = jax.device_get(metrics)
+        fe = m["final_error"][:, -1]
+        print(f"update {min(u, total_updates)}/{total_updates} steps {min(u, total_updates) * steps_per_update} "
+              f"steps/s {rate:.1f} chunk {dt:.1f}s ETA {max(eta, 0):.0f}s reward {np.mean(m['reward'][:, -1]):.2f} "
+              f"final_err {np.nanmean(fe) if np.isfinite(fe).any() else float('nan'):.3f} "
+              f"edits {np.nanmean(m['edits'][:, -1]):.1f} entropy {np.mean(m['entropy'][:, -1]):.2f}", flush=True)
+    mgr.wait_until_finished()
+    train_s = time.perf_counter() - t_train
+    t_eval = time.perf_counter()
+    gens = evaluate(jax.random.key(args.seed + 1), config, runner["params"], labels, args)
+    np.savez(out / "generated.npz", **{f"{n}/{k}": v for n, g in gens.items() for k, v in g.items()})
+    summ = summarize(gens)
+    (out / "eval.json").write_text(json.dumps(summ, indent=1))
+    for name, s in summ.items():
+        c = s["controllability"]
+        print(f"{name}: mean error {c['err_mean']:.3f} ± {c['err_sd']:.3f} (n={c['n']}) yield {s['yield']:.2f} "
+              f"edits {s['edits_mean']:.1f} PC1 SD {s['pc1_sd_mean']:.3f}", flush=True)
+    res = {"mean_error": summ["PPO"]["controllability"]["err_mean"],
+           "heuristic_mean_error": summ.get("PCG-HR", {}).get("controllability", {}).get("err_mean"),
+           "random_mean_error": summ.get("PCG-RD", {}).get("controllability", {}).get("err_mean"),
+           "pc1_sd": {n: s["pc1_sd_mean"] for n, s in summ.items()},
+           "yield": {n: s["yield"] for n, s in summ.items()},
+           "train_seconds": train_s, "eval_seconds": time.perf_counter() - t_eval,
+           "seconds": time.perf_counter() - t_start, "preset": args.preset, "seeds": args.seeds,
+           "total_steps": total_updates * steps_per_update, "groups": G, "n_games": config.n_games,
+           "cpu_count": os.cpu_count()}
+    print(json.dumps(res), flush=True)

@@ -1,0 +1,269 @@
+"""MA-POCA trainer: hand-computed λ-returns, baseline/value masking, losses, clipping, and a
+tiny end-to-end run with a checkpoint round-trip (no timing assertions)."""
+
+from __future__ import annotations
+
+import json
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import raidjax
+from raidjax.types import WIN
+from trainers import checkpoint
+from trainers.config import PRESETS, Config, load_config
+from trainers.mapoca import Batch, advantages, lambda_returns, loss_fn, make_train, make_trainer, team_reward
+from trainers.networks import Actor, Critic, masked_logits
+
+TINY = PRESETS["cpu"].replace(n_arenas=4, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1,
+                              heads=2, updates_per_chunk=2, total_steps=4 * 8 * 4, checkpoint_every=2,
+                              eval_games=4, skill_ranges=(9.0, 13.0))
+
+
+@pytest.fixture(scope="module")
+def obs3():
+    """A batch of 3 live observations (reference content) with a fixed PRNG."""
+    params = raidjax.make_params(skill_range=13.0)
+    obs, _ = jax.jit(jax.vmap(raidjax.reset, in_axes=(0, None)))(jax.random.split(jax.random.PRNGKey(0), 3), params)
+    # Make the three decisions distinct so that networks see different inputs.
+    noise = jax.random.normal(jax.random.PRNGKey(1), obs.self_features.shape) * 0.1
+    return obs.replace(self_features=obs.self_features + noise)
+
+
+def test_lambda_returns_truncation_and_termination():
+    gamma, lam = 0.5, 0.5
+    r = jnp.array([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0], [4.0, 4.0]])
+    v_next = jnp.array([[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 40.0]])
+    done = jnp.array([[0, 0], [1, 1], [0, 0], [0, 0]], bool)
+    term = jnp.array([[0, 0], [0, 1], [0, 0], [0, 0]], bool)  # arena 0 truncates at t=1, arena 1 terminates
+    g = np.asarray(lambda_returns(r, v_next, done, term, gamma, lam))
+    # t=3 (rollout end): 4 + .5*40 = 24; t=2: 3 + .5*(.5*30 + .5*24) = 16.5
+    # arena 0, t=1 truncated: 2 + .5*20 = 12; t=0: 1 + .5*(.5*10 + .5*12) = 6.5
+    # arena 1, t=1 terminated: 2; t=0: 1 + .5*(.5*10 + .5*2) = 4
+    np.testing.assert_allclose(g[:, 0], [6.5, 12.0, 16.5, 24.0])
+    np.testing.assert_allclose(g[:, 1], [4.0, 2.0, 16.5, 24.0])
+
+
+def test_posthumous_credit_mid_episode_death():
+    """Agent 2 dies during step 1; the team fights on. Its last action (t=1) is credited with
+    the rewards earned after its death, through the group return; later steps are masked."""
+    gamma, lam = 0.9, 0.8
+    r = jnp.array([0.5, 0.0, 2.0, 1.0])[:, None]
+    v_next = jnp.array([1.0, 2.0, 3.0, 4.0])[:, None]
+    done = jnp.zeros((4, 1), bool)
+    g3 = 1.0 + 0.9 * 4.0
+    g2 = 2.0 + 0.9 * (0.2 * 3.0 + 0.8 * g3)
+    g1 = 0.0 + 0.9 * (0.2 * 2.0 + 0.8 * g2)
+    g0 = 0.5 + 0.9 * (0.2 * 1.0 + 0.8 * g1)
+    g = lambda_returns(r, v_next, done, done, gamma, lam)
+    np.testing.assert_allclose(np.asarray(g[:, 0]), [g0, g1, g2, g3], rtol=1e-6)
+    alive = jnp.array([[1, 1, 1], [1, 1, 1], [1, 1, 0], [1, 1, 0]], bool)[:, None]  # [T, N, P]
+    base = jnp.array([[0.1, 0.2, 0.3], [0.4, 0.5, 0.6], [0.7, 0.8, 9.0], [1.0, 1.1, 9.0]])[:, None]
+    adv = np.asarray(advantages(g, base, alive))[:, 0]
+    raw = np.array([g0, g1, g2, g3])[:, None] - np.asarray(base[:, 0])
+    m = np.asarray(alive[:, 0])
+    expect = (raw - raw[m].mean()) / (raw[m].std() + 1e-8)
+    np.testing.assert_allclose(adv[m], expect[m], atol=1e-5)
+    assert (adv[~m] == 0).all()
+    # Agent 2's last action (t=1) is credited with G_1 = 4.573..., which holds the rewards 2.0 and
+    # 1.0 earned after its death; an agent-level termination at death would have given r_1 = 0.
+    assert abs(g1 - 4.5730) < 1e-3 and float(g[1, 0]) > 4.5
+
+
+def test_team_reward_is_shared_once():
+    info = {"damage_dealt": jnp.array([[50.0, 0.0, 60.0], [0.0, 0.0, 0.0]]), "result": jnp.array([WIN, 0])}
+    done = jnp.array([True, False])
+    np.testing.assert_allclose(np.asarray(team_reward(info, done)), [0.01 * 110 + 1.0, 0.0])
+    # Against the env's per-player rewards: r_team = sum_i r_i - (P - 1) * won.
+    env_r = 0.01 * info["damage_dealt"] + 1.0 * (done & (info["result"] == WIN))[:, None]
+    np.testing.assert_allclose(np.asarray(team_reward(info, done)), np.asarray(env_r.sum(-1) - 2.0 * done), rtol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def critic(obs3):
+    """``(Critic, weights)`` of a small critic."""
+    net = Critic(hidden=16, layers=1, heads=2)
+    return net, jax.jit(net.init)(jax.random.PRNGKey(2), obs3, jnp.zeros((3, 3), jnp.int32))
+
+
+def test_baseline_ignores_own_action_and_sees_teammates(obs3, critic):
+    net, params = critic
+    base = jax.jit(lambda a, o: net.apply(params, o, a, method=Critic.baseline))
+    dead = obs3.replace(alive=obs3.alive.at[:, 2].set(False))
+    a = jnp.array([[1, 2, 7]] * 3, jnp.int32)
+    b0, b_own = base(a, obs3), base(a.at[:, 0].set(4), obs3)  # agent 0 changes its own action
+    np.testing.assert_allclose(np.asarray(b_own[:, 0]), np.asarray(b0[:, 0]), rtol=1e-6)
+    assert np.abs(np.asarray(b_own[:, 1:] - b0[:, 1:])).min() > 1e-6  # teammates' baselines see it
+    # A dead teammate's action is masked out as well.
+    np.testing.assert_allclose(np.asarray(base(a.at[:, 2].set(3), dead)[:, :2]), np.asarray(base(a, dead)[:, :2]),
+                               rtol=1e-6)
+
+
+def test_value_masks_dead_agents(obs3, critic):
+    net, params = critic
+    value = jax.jit(lambda o: net.apply(params, o, method=Critic.value))
+    dead = obs3.replace(alive=obs3.alive.at[:, 1].set(False))
+    garbage = dead.replace(self_features=dead.self_features.at[:, 1].set(123.0),
+                           action_mask=dead.action_mask.at[:, 1].set(True))
+    np.testing.assert_allclose(np.asarray(value(garbage)), np.asarray(value(dead)), rtol=1e-6)
+    assert np.abs(np.asarray(value(dead) - value(obs3))).min() > 1e-6
+    all_dead = obs3.replace(alive=jnp.zeros_like(obs3.alive))
+    assert np.isfinite(np.asarray(value(all_dead))).all()
+
+
+def _batch(obs3, actor, a_params, critic, c_params, ratio_factor=1.0) -> Batch:
+    """A fixed batch of 3 decisions (agent 2 dead in the second) whose stored log-probabilities
+    are the current ones minus log(ratio_factor), values 0.1 below and baselines 0.3 above."""
+    actions = jnp.array([[7, 1, 0], [2, 7, 3], [0, 0, 1]], jnp.int32)
+    alive = jnp.array([[1, 1, 1], [1, 1, 0], [1, 1, 1]], bool)
+    obs = obs3.replace(alive=alive, action_mask=obs3.action_mask | (jnp.arange(10)[None, None] < 8))
+    logp = jnp.take_along_axis(jax.nn.log_softmax(actor.apply(a_params, obs)), actions[..., None], -1)[..., 0]
+    v, b = critic.apply(c_params, obs, actions)
+    return Batch(obs, actions, logp - jnp.log(ratio_factor), alive, v - 0.1, b + 0.3,
+                 jnp.array([1.0, -2.0, 0.5]), jnp.array([[1.0, -1.0, 0.5], [2.0, 0.3, 0.0], [-0.7, 0.2, 1.1]]))
+
+
+def test_loss_terms_on_fixed_batch(obs3, critic):
+    net, c_params = critic
+    actor = Actor(16, 1, 2, False)
+
+    @jax.jit
+    def run(key):
+        params = {"actor": actor.init(key, obs3), "critic": c_params}
+        batch = _batch(obs3, actor, params["actor"], net, c_params, ratio_factor=1.5)  # every ratio = 1.5
+        loss, aux = loss_fn(params, batch, actor, net, 0.2, 0.01)
+        v, b = net.apply(c_params, batch.obs, batch.action)
+        return batch, loss, aux, v, b, jax.nn.softmax(actor.apply(params["actor"], batch.obs))
+
+    batch, loss, aux, v, b, p = jax.tree.map(np.asarray, run(jax.random.PRNGKey(3)))
+    m = batch.alive.astype(float)
+    adv = batch.advantage
+    # ratio 1.5: min(1.5 A, 1.2 A) = 1.2 A for A > 0 and 1.5 A for A < 0.
+    surr = np.where(adv > 0, 1.2 * adv, 1.5 * adv)
+    np.testing.assert_allclose(aux["policy_loss"], -(surr * m).sum() / m.sum(), rtol=1e-5)
+    # Values sit 0.1 above their stored old values (inside the clip), baselines 0.3 below theirs
+    # (outside: clipped to old - 0.2); each term takes the larger of the two squared errors.
+    g = batch.returns
+    lv = np.maximum((v - g) ** 2, (v - g) ** 2).mean()
+    lb = (np.maximum((b - g[:, None]) ** 2, (b + 0.3 - 0.2 - g[:, None]) ** 2) * m).sum() / m.sum()
+    np.testing.assert_allclose(aux["value_loss"], lv, rtol=1e-5)
+    np.testing.assert_allclose(aux["baseline_loss"], lb, rtol=1e-5)
+    ent = -np.where(p > 0, p * np.log(np.maximum(p, 1e-30)), 0).sum(-1)
+    np.testing.assert_allclose(aux["entropy"], (ent * m).sum() / m.sum(), rtol=1e-4)
+    np.testing.assert_allclose(loss, aux["policy_loss"] + 0.5 * (lv + 0.5 * lb) - 0.01 * aux["entropy"], rtol=1e-5)
+
+
+class TableActor(nn.Module):
+    """A policy with one free logit vector per (decision, player): samples do not share weights."""
+
+    @nn.compact
+    def __call__(self, obs):
+        logits = self.param("logits", nn.initializers.zeros, obs.action_mask.shape)
+        return masked_logits(logits, obs.action_mask)
+
+
+def test_clipped_update_keeps_ratio_in_bounds(obs3, critic):
+    net, c_params = critic
+    actor = TableActor()
+
+    @jax.jit
+    def run(key):
+        a0 = actor.init(key, obs3)
+        batch = _batch(obs3, actor, a0, net, c_params)
+
+        def pi_loss(a, batch, clip):
+            return loss_fn({"actor": a, "critic": c_params}, batch, actor, net, clip, 0.0)[1]["policy_loss"]
+
+        def ratios(a):
+            logp_all = jax.nn.log_softmax(actor.apply(a, batch.obs))
+            return jnp.exp(jnp.take_along_axis(logp_all, batch.action[..., None], -1)[..., 0] - batch.logp)
+
+        def descend(clip):  # plain gradient descent on the policy loss
+            step = lambda _, a: jax.tree.map(lambda p, g: p - 0.1 * g, a, jax.grad(pi_loss)(a, batch, clip))
+            return jax.lax.fori_loop(0, 400, step, a0)
+
+        # Every stored ratio at 2 and every advantage positive: already past the bound.
+        far = _batch(obs3, actor, a0, net, c_params, 2.0)._replace(advantage=jnp.abs(batch.advantage) + 0.1)
+        return batch, ratios(descend(0.2)), ratios(descend(1e6)), jax.grad(pi_loss)(a0, far, 0.2)
+
+    batch, clipped, unclipped, g_far = run(jax.random.PRNGKey(4))
+    alive = np.asarray(batch.alive)
+    adv, clipped, unclipped = (np.asarray(x)[alive] for x in (batch.advantage, clipped, unclipped))
+    assert np.abs(unclipped - 1).max() > 1.0  # the unclipped surrogate runs far away
+    # Each ratio moved in its advantage's direction and stopped at the bound (within one step).
+    pos, neg = adv > 0, adv < 0
+    assert (clipped[pos] > 1.195).all() and (clipped[pos] < 1.23).all()
+    assert (clipped[neg] < 0.805).all() and (clipped[neg] > 0.77).all()
+    # Past the bound in the advantage's direction the policy gradient vanishes.
+    assert max(float(jnp.abs(x).max()) for x in jax.tree.leaves(g_far)) == 0.0
+
+
+def test_config_presets_and_json(tmp_path):
+    paper = PRESETS["paper"]
+    assert (paper.hidden, paper.layers, paper.lr, paper.ent_coef, paper.clip_eps, paper.lam, paper.update_epochs,
+            paper.gamma, paper.decisions_per_update) == (256, 2, 3e-4, 0.01, 0.2, 0.95, 3, 0.99, 8192)
+    f = tmp_path / "c.json"
+    f.write_text(json.dumps({"hidden": 24, "skill_ranges": [5, 9]}))
+    cfg = load_config("cpu", f, total_steps=123)
+    assert cfg.hidden == 24 and cfg.skill_ranges == (5.0, 9.0) and cfg.total_steps == 123
+    assert Config.from_dict(cfg.to_dict()) == cfg
+    with pytest.raises(ValueError, match="unknown keys"):
+        Config.from_dict({"hiden": 3})
+
+
+FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
+
+
+def test_end_to_end_train_resume_and_checkpoint(tmp_path):
+    cfg = TINY
+    keys = jax.random.split(jax.random.PRNGKey(0), 2)
+    # make_train: a whole run, two seeds vmapped in one call (traced abstractly: shapes only).
+    runner, metrics = jax.eval_shape(jax.vmap(make_train(cfg)), keys)
+    assert metrics["loss"].shape == (2, cfg.num_chunks)
+    assert runner.obs.self_features.shape == (2, cfg.n_arenas, 3, 25)
+
+    # Chunks as the CLI runs them (compiled once, fast XLA options); interrupt after one chunk,
+    # checkpoint, restore, go on: the resumed run matches the uninterrupted one exactly.
+    trainer = make_trainer(cfg)
+    init = jax.jit(jax.vmap(trainer.init))
+    r0 = init.lower(keys).compile(FAST_COMPILE)(keys)
+    chunk = jax.jit(jax.vmap(trainer.chunk)).lower(r0).compile(FAST_COMPILE)
+    r1, m1 = chunk(r0)
+    straight, m_straight = chunk(r1)
+    assert m1["loss"].shape == (2,) and int(straight.update[0]) == cfg.num_updates
+    assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves((m1, m_straight, straight.params)))
+    assert set(np.unique(np.asarray(straight.ranges))) <= {9.0, 13.0}
+    assert not np.array_equal(np.asarray(straight.params["actor"]["params"]["pi"]["kernel"]),
+                              np.asarray(r0.params["actor"]["params"]["pi"]["kernel"]))
+    ckpt = tmp_path / "checkpoints"
+    checkpoint.save(ckpt, r1, cfg, {"chunk": 1, "update": 2, "env_steps": 64, "seconds": 1.0})
+    restored, cfg2, meta = checkpoint.restore(tmp_path, jax.eval_shape(init, keys))
+    assert cfg2 == cfg and meta["update"] == 2 and checkpoint.latest_step(ckpt) == 2
+    for a, b in zip(jax.tree.leaves(r1), jax.tree.leaves(restored), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    resumed, m_resumed = chunk(restored)
+    for a, b in zip(jax.tree.leaves((straight, m_straight)), jax.tree.leaves((resumed, m_resumed)), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+    # The trained policy loads as a pure, hashable raidjax policy.
+    policy = checkpoint.load_policy(tmp_path, seed=1, deterministic=True)
+    hash(policy)
+    first = lambda tree: jax.tree.map(lambda x: x[0, 0], tree)  # seed 0, arena 0
+    obs, state = first(r0.obs), first(r0.env_state)
+    actions = np.asarray(jax.jit(policy)(jax.random.PRNGKey(6), obs, state, raidjax.make_params(skill_range=9.0)))
+    assert actions.shape == (3,) and actions.dtype == np.int32
+    assert np.asarray(obs.action_mask)[np.arange(3), actions].all()
+
+    with pytest.raises(checkpoint.CheckpointError, match="does not exist"):
+        checkpoint.load_policy(tmp_path / "nope")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(checkpoint.CheckpointError, match="no finished checkpoint"):
+        checkpoint.load_policy(tmp_path / "empty")
+    for f in (ckpt / "2" / "policy").rglob("*"):  # corrupt every file of the policy item
+        if f.is_file():
+            f.write_bytes(b"garbage")
+    with pytest.raises(checkpoint.CheckpointError, match="corrupted"):
+        checkpoint.load_policy(tmp_path)

@@ -1,0 +1,188 @@
+"""Command line of the MA-POCA trainer (``python -m trainers.mapoca``).
+
+The outer Python loop only runs jitted chunks of ``updates_per_chunk`` updates (all seeds
+vmapped together), prints progress, appends one metrics row per chunk to
+``DIR/metrics.jsonl`` and ``DIR/metrics.csv``, checkpoints every ``checkpoint_every`` updates,
+and at the end evaluates the team over ``eval_games`` games next to PT-HR on the same content.
+The last stdout line is one JSON object (``win_rate``, ``heuristic_win_rate``,
+``env_steps_per_s``, ``seconds``, ...).
+
+    python -m trainers.mapoca --preset cpu --skill-range 13 --total-steps 2000000 --seeds 1 --out runs/r13
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+import raidjax
+from trainers import checkpoint
+from trainers.config import Config, load_config
+from trainers.mapoca import make_trainer, summarize
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    """CLI arguments (see the module docstring)."""
+    ap = argparse.ArgumentParser(prog="python -m trainers.mapoca", description="Train MA-POCA on raidjax.")
+    ap.add_argument("--preset", default="cpu", choices=["paper", "cpu"])
+    ap.add_argument("--config", help="JSON file of Config fields (applied after the preset)")
+    ap.add_argument("--skill-range", type=float, nargs="+", help="range(s) of the players' skill; "
+                    "several values = drawn per episode")
+    ap.add_argument("--total-steps", type=int, help="environment decisions per seed")
+    ap.add_argument("--seeds", type=int, default=1, help="seeds trained together (vmapped)")
+    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
+    ap.add_argument("--out", required=True, help="run directory (checkpoints, metrics)")
+    ap.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
+    ap.add_argument("--checkpoint-every", type=int, help="updates between checkpoints")
+    ap.add_argument("--updates-per-chunk", type=int, help="updates per jitted chunk (log row)")
+    ap.add_argument("--eval-games", type=int, help="games of the final evaluation (0 skips it)")
+    ap.add_argument("--max-chunks", type=int, help="stop after this many chunks of this invocation "
+                    "(testing interruption/resume)")
+    return ap.parse_args(argv)
+
+
+def machine() -> dict:
+    """Short description of the machine."""
+    dev = jax.devices()[0]
+    return {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
+            "processor": platform.processor() or platform.machine(), "jax": jax.__version__}
+
+
+def _fmt_time(s: float) -> str:
+    return f"{int(s // 3600)}h{int(s % 3600 // 60):02d}m" if s >= 3600 else f"{int(s // 60)}m{int(s % 60):02d}s"
+
+
+class MetricsLog:
+    """Append-only per-chunk rows in JSONL and CSV (rows past ``keep_chunks`` dropped on resume)."""
+
+    def __init__(self, out: Path, keep_chunks: int | None):
+        self.jsonl, self.csv = out / "metrics.jsonl", out / "metrics.csv"
+        rows = []
+        if keep_chunks is not None and self.jsonl.exists():
+            rows = [json.loads(s) for s in self.jsonl.read_text().splitlines() if s.strip()]
+            rows = [r for r in rows if r["chunk"] < keep_chunks]
+        self.jsonl.write_text("".join(json.dumps(r) + "\n" for r in rows))
+        self.fields = list(rows[0]) if rows else None
+        with self.csv.open("w", newline="") as f:
+            if rows:
+                w = csv.DictWriter(f, self.fields)
+                w.writeheader()
+                w.writerows(rows)
+
+    def write(self, row: dict) -> None:
+        """Append one row to both files."""
+        with self.jsonl.open("a") as f:
+            f.write(json.dumps(row) + "\n")
+        new = self.fields is None
+        self.fields = self.fields or list(row)
+        with self.csv.open("a", newline="") as f:
+            w = csv.DictWriter(f, self.fields, extrasaction="ignore")
+            if new:
+                w.writeheader()
+            w.writerow(row)
+
+
+def evaluate(out: Path, cfg: Config, n_seeds: int, key: jax.Array) -> dict:
+    """Win rates of every seed's trained team and of PT-HR over ``cfg.eval_games`` games per
+    skill range in ``cfg.skill_ranges`` (same content, same typed PRNG ``key``). Returns a
+    JSON-able dict."""
+    per_range = {}
+    policies = [checkpoint.load_policy(out, seed=s) for s in range(n_seeds)]  # one compile per seed
+    for r in cfg.skill_ranges:
+        content = raidjax.make_params(skill_range=r)
+        hr = float(raidjax.win_rate(raidjax.playtest(key, content, raidjax.policies.heuristic, cfg.eval_games)))
+        wins = [float(raidjax.win_rate(raidjax.playtest(key, content, p, cfg.eval_games))) for p in policies]
+        per_range[f"{r:g}"] = {"win_rate": float(np.mean(wins)), "win_rate_per_seed": wins,
+                               "heuristic_win_rate": hr}
+    return {
+        "win_rate": float(np.mean([v["win_rate"] for v in per_range.values()])),
+        "heuristic_win_rate": float(np.mean([v["heuristic_win_rate"] for v in per_range.values()])),
+        "per_range": per_range,
+    }
+
+
+def main(argv=None) -> dict:
+    """Train (or resume), log, checkpoint, evaluate; print and return the final JSON object."""
+    t_start = time.perf_counter()
+    args = parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    ckpt_dir = out / "checkpoints"
+    cfg = load_config(args.preset, args.config, skill_ranges=args.skill_range, total_steps=args.total_steps,
+                      checkpoint_every=args.checkpoint_every, updates_per_chunk=args.updates_per_chunk,
+                      eval_games=args.eval_games)
+    if not args.resume and checkpoint.latest_step(ckpt_dir) is not None:
+        raise SystemExit(f"{ckpt_dir} already holds checkpoints: pass --resume to continue, or a new --out")
+    if args.resume:
+        if checkpoint.latest_step(ckpt_dir) is None:
+            raise checkpoint.CheckpointError(f"--resume: no finished checkpoint in {ckpt_dir}")
+        cfg = checkpoint.load_config(ckpt_dir)  # the run's own config: the resumed run must match
+        print("resuming with the checkpoint's config (flags other than --out/--eval-games ignored)", flush=True)
+        if args.eval_games is not None:
+            cfg = cfg.replace(eval_games=args.eval_games)
+    trainer = make_trainer(cfg)
+    keys = jax.random.split(jax.random.PRNGKey(args.seed), args.seeds)
+    init = jax.jit(jax.vmap(trainer.init))
+    t0 = time.perf_counter()
+    if args.resume:
+        runner, saved_cfg, meta = checkpoint.restore(ckpt_dir, jax.eval_shape(init, keys))
+        start_chunk, seconds_before = meta["chunk"], meta["seconds"]
+        n_seeds = jax.tree.leaves(runner.params)[0].shape[0]
+        if n_seeds != args.seeds:
+            raise ValueError(f"--seeds: {args.seeds} given, the checkpoint holds {n_seeds}")
+    else:
+        runner, start_chunk, seconds_before = init(keys), 0, 0.0
+    (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=1))
+    chunk = jax.jit(jax.vmap(trainer.chunk), donate_argnums=0).lower(runner).compile()
+    compile_s = time.perf_counter() - t0
+    print(f"compiled in {compile_s:.1f}s; {cfg.num_updates} updates x {cfg.decisions_per_update} decisions "
+          f"x {args.seeds} seeds; {machine()}", flush=True)
+    log = MetricsLog(out, keep_chunks=start_chunk)
+    per_chunk = cfg.updates_per_chunk * cfg.decisions_per_update
+    every = max(1, -(-cfg.checkpoint_every // cfg.updates_per_chunk))
+    t_loop, done_here = time.perf_counter(), 0
+    end_chunk = cfg.num_chunks if args.max_chunks is None else min(cfg.num_chunks, start_chunk + args.max_chunks)
+    for c in range(start_chunk, end_chunk):
+        runner, m = chunk(runner)
+        row = summarize(jax.device_get(m))
+        done_here += 1
+        el = time.perf_counter() - t_loop
+        sps = done_here * per_chunk * args.seeds / el
+        steps = (c + 1) * per_chunk
+        row = {"chunk": c, "update": (c + 1) * cfg.updates_per_chunk, "env_steps": steps,
+               "seconds": seconds_before + el, "steps_per_s": sps, **row}
+        log.write(row)
+        eta = (end_chunk - c - 1) * el / done_here
+        total = cfg.num_updates * cfg.decisions_per_update
+        print(f"[{c + 1}/{cfg.num_chunks}] steps {steps / 1e6:.2f}M/{total / 1e6:.2f}M"
+              f"  {sps:,.0f} steps/s  ETA {_fmt_time(eta)}  return {row['return']:.2f}  win {row['win_rate']:.3f}"
+              f"  len {row['length']:.0f}  ent {row['entropy']:.2f}", flush=True)
+        if (c + 1) % every == 0 or c + 1 == cfg.num_chunks:
+            checkpoint.save(ckpt_dir, runner, cfg, {"chunk": c + 1, "update": (c + 1) * cfg.updates_per_chunk,
+                                                    "env_steps": steps, "seconds": seconds_before + el})
+    train_s = time.perf_counter() - t_loop
+    result = {"preset": args.preset, "skill_ranges": list(cfg.skill_ranges), "seeds": args.seeds,
+              "env_steps": end_chunk * per_chunk,
+              "env_steps_per_s": done_here * per_chunk * args.seeds / max(train_s, 1e-9),
+              "compile_seconds": compile_s, "train_seconds": seconds_before + train_s}
+    if cfg.eval_games > 0 and end_chunk == cfg.num_chunks:
+        t_eval = time.perf_counter()
+        result.update(evaluate(out, cfg, args.seeds, jax.random.key(args.seed + 12345)))
+        result["eval_seconds"] = time.perf_counter() - t_eval
+    result["seconds"] = time.perf_counter() - t_start
+    (out / "result.json").write_text(json.dumps(result, indent=1))
+    print(json.dumps(result), flush=True)
+    return result
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main() else 1)

@@ -1,0 +1,127 @@
+"""Configuration of the MA-POCA trainer: one frozen dataclass, named presets, JSON round-trip.
+
+Units: ``n_arenas x n_steps`` environment *decisions* (every player acts once) per update;
+each decision holds up to ``P = 3`` agent experiences.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+    """Hyper-parameters (hashable, so it can be a static argument).
+
+    Attributes:
+        n_arenas: parallel arenas (auto-resetting) per seed.
+        n_steps: rollout length per update (the λ-return horizon; bootstrap at its end).
+        n_minibatches: minibatches per epoch (minibatch = n_arenas * n_steps / n_minibatches decisions).
+        update_epochs: passes over each rollout.
+        lr, anneal_lr: Adam learning rate; linear decay to 0 over the run if ``anneal_lr``.
+        max_grad_norm: global gradient-norm clip (0 disables).
+        gamma, lam: discount and λ of the λ-returns.
+        clip_eps: PPO ratio clip ε, also the value/baseline clip.
+        ent_coef, anneal_ent: entropy bonus β (linear decay to 0 if ``anneal_ent``).
+        hidden, layers, heads: network width, MLP depth, attention heads (actor and critic).
+        proj_attention: the actor attends over projectiles as entities (else they join its
+            self features; cheaper on CPU).
+        skill_ranges: skill-slot-1 range of every player, drawn per episode from this set.
+        total_steps: environment decisions per seed.
+        updates_per_chunk: updates per jitted chunk (one log row / progress line per chunk).
+        checkpoint_every: checkpoint every this many updates (rounded up to whole chunks).
+        eval_games: games of the final evaluation (and of PT-HR on the same content).
+        deterministic_eval: evaluate the greedy (argmax) policy instead of sampling.
+    """
+
+    n_arenas: int = 256
+    n_steps: int = 32
+    n_minibatches: int = 4
+    update_epochs: int = 3
+    lr: float = 3e-4
+    anneal_lr: bool = True
+    max_grad_norm: float = 0.5
+    gamma: float = 0.99
+    lam: float = 0.95
+    clip_eps: float = 0.2
+    ent_coef: float = 0.01
+    anneal_ent: bool = False
+    hidden: int = 64
+    layers: int = 2
+    heads: int = 4
+    proj_attention: bool = True
+    skill_ranges: tuple[float, ...] = (13.0,)
+    total_steps: int = 1_000_000
+    updates_per_chunk: int = 10
+    checkpoint_every: int = 50
+    eval_games: int = 500
+    deterministic_eval: bool = False
+
+    @property
+    def decisions_per_update(self) -> int:
+        """Environment decisions per update and seed."""
+        return self.n_arenas * self.n_steps
+
+    @property
+    def num_updates(self) -> int:
+        """Updates per seed: ``total_steps`` rounded up to whole updates and whole chunks."""
+        n = -(-self.total_steps // self.decisions_per_update)
+        return -(-n // self.updates_per_chunk) * self.updates_per_chunk
+
+    @property
+    def num_chunks(self) -> int:
+        """Jitted chunks per run."""
+        return self.num_updates // self.updates_per_chunk
+
+    def replace(self, **kw) -> Config:
+        """A copy with fields changed (lists become tuples); unknown fields raise ``TypeError``."""
+        if "skill_ranges" in kw:
+            kw["skill_ranges"] = tuple(float(r) for r in kw["skill_ranges"])
+        return dataclasses.replace(self, **kw)
+
+    def to_dict(self) -> dict:
+        """JSON-able dict of every field."""
+        d = dataclasses.asdict(self)
+        d["skill_ranges"] = list(self.skill_ranges)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Config:
+        """Inverse of ``to_dict``; raises ``ValueError`` naming unknown keys."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(f"config: unknown keys {unknown}; known: {sorted(known)}")
+        return cls().replace(**d)
+
+
+PRESETS: dict[str, Config] = {
+    # SPEC §12 reference hyper-parameters: buffer 8192 and batch 256 (taken as decisions,
+    # each up to 3 agent experiences), horizon 256, 3 epochs, 2 x 256 hidden, lr 3e-4 (linear
+    # decay, as ML-Agents' default schedule), beta 0.01, epsilon 0.2, lambda 0.95, gamma 0.99.
+    "paper": Config(n_arenas=32, n_steps=256, n_minibatches=32, update_epochs=3, lr=3e-4, hidden=256,
+                    layers=2, heads=4, ent_coef=0.01, lam=0.95, gamma=0.99, clip_eps=0.2),
+    # Small and wide: 256 arenas amortise the per-step cost on a 2-core CPU; a 2 x 32 network
+    # with teammate-only attention (projectiles join the self features), 2 epochs of 8
+    # minibatches of 1024 decisions, lr 1e-3 (see docs/RESULTS.md).
+    "cpu": Config(n_arenas=256, n_steps=32, n_minibatches=8, update_epochs=2, lr=1e-3, hidden=32,
+                  layers=2, heads=2, proj_attention=False, ent_coef=0.01, lam=0.95, gamma=0.99, clip_eps=0.2,
+                  updates_per_chunk=5),
+}
+
+
+def load_config(preset: str = "cpu", path: str | Path | None = None, **overrides) -> Config:
+    """Preset, then the JSON file at ``path`` (a dict of fields), then ``overrides`` (None skipped).
+
+    Raises:
+        ValueError: unknown preset or unknown keys in the file.
+    """
+    if preset not in PRESETS:
+        raise ValueError(f"preset: unknown {preset!r}; known: {sorted(PRESETS)}")
+    cfg = PRESETS[preset]
+    if path is not None:
+        data = json.loads(Path(path).read_text())
+        cfg = cfg.replace(**Config.from_dict({**cfg.to_dict(), **data}).to_dict())
+    return cfg.replace(**{k: v for k, v in overrides.items() if v is not None})

@@ -1,0 +1,335 @@
+"""MA-POCA (Cohen et al. 2021; SPEC §12) as one pure, jittable JAX program, PureJaxRL style.
+
+``make_train(config)(key)`` runs a whole training run on device: ``n_arenas`` auto-resetting
+raidjax arenas roll out ``n_steps`` decisions inside ``lax.scan``, λ-returns and counterfactual
+advantages are computed, and ``update_epochs x n_minibatches`` Adam steps follow, all inside
+one scan over updates. ``make_trainer`` exposes the pieces (``init``, ``update``, ``chunk``) that
+the CLI (``trainers.cli``) drives chunk by chunk for progress, logs and checkpoints.
+
+Reward (SPEC §8, §12). ``raidjax.step`` pays player ``i``: ``r_i = 0.01 d_i + 1.0 w`` (``d_i``
+the damage its hits did to the boss this step, ``w`` = the boss died this step). MA-POCA
+trains every agent on its own + its teammates' individual rewards + the group reward, i.e. on
+the one team reward ``r = 0.01 sum_i d_i + 1.0 w = sum_i r_i - (P - 1) w`` (the win bonus is a
+group reward, paid once, not once per player). Every agent therefore shares one λ-return G_t.
+
+Returns (posthumous credit). With V the centralised value of the *alive* agents and ``V'_t``
+the value of the state after step ``t`` in the same episode (``info['final_observation']`` at an
+episode end, the next observation otherwise)::
+
+    G_t = r_t + γ (1 - term_t) [(1 - λ_t) V'_t + λ_t G_{t+1}],   λ_t = λ (1 - done_t), λ_{T-1} = 0
+
+so a win or loss (termination) zeroes the bootstrap, a draw (truncation) bootstraps from the
+final state, and nothing depends on whether agent i is still alive: a dead agent's last action
+is credited with everything the group earns until the group's episode ends, through G and V.
+Agent i's advantage is ``A_ti = G_t - b_ti`` (counterfactual baseline), defined where agent i
+acted (was alive at t), normalised over those entries of the whole update.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+
+import raidjax
+from raidjax.env import DAMAGE_REWARD, WIN_REWARD
+from raidjax.types import WIN, Observation, Params, State
+from trainers.config import Config
+from trainers.networks import Actor, Critic
+
+
+@struct.dataclass
+class Runner:
+    """Training state of one seed (``N`` arenas, ``P`` players); a pytree, checkpointed whole."""
+
+    params: dict  # {"actor": ..., "critic": ...} network weights
+    opt_state: Any
+    env_state: State  # [N]
+    obs: Observation  # [N, P, ...]
+    ranges: jax.Array  # float32[N] skill range of each arena's current episode
+    ep_return: jax.Array  # float32[N] team return of the running episodes
+    ep_length: jax.Array  # int32[N]
+    key: jax.Array  # uint32[2] raw PRNG key
+    update: jax.Array  # int32[] updates done
+
+
+@struct.dataclass
+class Transition:
+    """One rollout step of ``N`` arenas (a leading ``T`` axis once stacked)."""
+
+    obs: Observation  # [N, P, ...] observation acted on
+    action: jax.Array  # int32[N, P] (0 for dead players)
+    logp: jax.Array  # float32[N, P] log-probability of the action
+    alive: jax.Array  # bool[N, P] agent acted (alive at the observation)
+    value: jax.Array  # float32[N] V(s_t)
+    baseline: jax.Array  # float32[N, P] b_i(s_t, a_-i)
+    next_value: jax.Array  # float32[N] V(s'_t), s'_t = the state after the step, same episode
+    reward: jax.Array  # float32[N] team reward
+    done: jax.Array  # bool[N] episode ended with this step
+    terminated: jax.Array  # bool[N] ... by a win or a loss
+
+
+class Batch(NamedTuple):
+    """Flattened training samples (leading axis = decisions) for ``loss_fn``."""
+
+    obs: Observation  # [B, P, ...]
+    action: jax.Array  # int32[B, P]
+    logp: jax.Array  # float32[B, P]
+    alive: jax.Array  # bool[B, P]
+    value: jax.Array  # float32[B] old V
+    baseline: jax.Array  # float32[B, P] old b
+    returns: jax.Array  # float32[B] λ-returns G
+    advantage: jax.Array  # float32[B, P] normalised G - b (0 where not alive)
+
+
+def team_reward(info: dict, done: jax.Array) -> jax.Array:
+    """Team reward from ``raidjax.step`` info: ``0.01 sum_i damage_i + 1.0 [boss died]``.
+
+    Args:
+        info: step info with ``damage_dealt: float32[..., P]`` and ``result: int32[...]``.
+        done: ``bool[...]``.
+
+    Returns:
+        ``float32[...]`` (equals ``reward.sum(-1) - (P - 1) * won``; see the module docstring).
+    """
+    won = done & (info["result"] == WIN)
+    return DAMAGE_REWARD * jnp.sum(info["damage_dealt"], axis=-1) + WIN_REWARD * won
+
+
+def lambda_returns(reward, next_value, done, terminated, gamma: float, lam: float) -> jax.Array:
+    """Group λ-returns, time-major (formula in the module docstring).
+
+    Args:
+        reward, next_value: ``float32[T, ...]``; done, terminated: ``bool[T, ...]``.
+
+    Returns:
+        ``float32[T, ...]`` G_t (the last step bootstraps from ``next_value[-1]`` unless terminated).
+    """
+
+    def body(g_next, x):
+        r, v, d, term = x
+        lam_t = lam * (1.0 - d)
+        g = r + gamma * (1.0 - term) * ((1.0 - lam_t) * v + lam_t * g_next)
+        return g, g
+
+    xs = (reward, next_value, done.astype(jnp.float32), terminated.astype(jnp.float32))
+    _, g = jax.lax.scan(body, next_value[-1], xs, reverse=True)
+    return g
+
+
+def advantages(returns: jax.Array, baseline: jax.Array, alive: jax.Array) -> jax.Array:
+    """Counterfactual advantages ``G - b_i``, normalised over the alive entries, 0 elsewhere.
+
+    Args:
+        returns: ``float32[...]``; baseline: ``float32[..., P]``; alive: ``bool[..., P]``.
+
+    Returns:
+        ``float32[..., P]``.
+    """
+    m = alive.astype(jnp.float32)
+    n = jnp.maximum(m.sum(), 1.0)
+    a = returns[..., None] - baseline
+    mean = jnp.sum(a * m) / n
+    std = jnp.sqrt(jnp.sum(jnp.square(a - mean) * m) / n)
+    return jnp.where(alive, (a - mean) / (std + 1e-8), 0.0)
+
+
+def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: float, ent_coef):
+    """MA-POCA loss ``L = L_pi + 0.5 (L_V + 0.5 L_b) - β H`` on one minibatch.
+
+    L_pi: PPO clipped surrogate; L_V / L_b: clipped squared regression of V / b onto G (max of
+    the clipped and unclipped errors); H: entropy of the masked categorical. Policy, baseline
+    and entropy terms average over the agents that acted; L_V over decisions.
+
+    Returns:
+        ``(loss: float32[], aux: dict of float32[])``.
+    """
+    logits = actor.apply(params["actor"], batch.obs)
+    logp_all = jax.nn.log_softmax(logits)
+    logp = jnp.take_along_axis(logp_all, batch.action[..., None], axis=-1)[..., 0]
+    m = batch.alive.astype(jnp.float32)
+    n = jnp.maximum(m.sum(), 1.0)
+    ratio = jnp.exp(logp - batch.logp)
+    adv = batch.advantage
+    surrogate = jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - clip_eps, 1 + clip_eps) * adv)
+    l_pi = -jnp.sum(surrogate * m) / n
+    probs = jnp.exp(logp_all)
+    ent = -jnp.sum(jnp.where(batch.obs.action_mask, probs * logp_all, 0.0), axis=-1)
+    entropy = jnp.sum(ent * m) / n
+
+    value, baseline = critic.apply(params["critic"], batch.obs, batch.action)
+
+    def clipped_sq(new, old, target):
+        clipped = old + jnp.clip(new - old, -clip_eps, clip_eps)
+        return jnp.maximum(jnp.square(new - target), jnp.square(clipped - target))
+
+    l_v = jnp.mean(clipped_sq(value, batch.value, batch.returns))
+    l_b = jnp.sum(clipped_sq(baseline, batch.baseline, batch.returns[..., None]) * m) / n
+    loss = l_pi + 0.5 * (l_v + 0.5 * l_b) - ent_coef * entropy
+    aux = {
+        "loss": loss, "policy_loss": l_pi, "value_loss": l_v, "baseline_loss": l_b, "entropy": entropy,
+        "approx_kl": jnp.sum(((ratio - 1) - (logp - batch.logp)) * m) / n,
+        "clip_frac": jnp.sum((jnp.abs(ratio - 1) > clip_eps) * m) / n,
+    }
+    return loss, aux
+
+
+def with_range(base: Params, skill_range: jax.Array) -> Params:
+    """``base`` with every player's skill-slot-1 range set to ``skill_range`` (float32[])."""
+    n_players = base.team.shape[0] - 1
+    rng = base.skills.range.at[:n_players, 0].set(skill_range)
+    return base.replace(skills=base.skills.replace(range=rng))
+
+
+def sample_actions(key, logits: jax.Array, alive: jax.Array, deterministic: bool = False):
+    """Sample from masked logits ``[..., P, A]``; dead players get action 0.
+
+    Returns:
+        ``(actions int32[..., P], logp float32[..., P])``.
+    """
+    a = jnp.argmax(logits, -1) if deterministic else jax.random.categorical(key, logits)
+    a = jnp.where(alive, a, 0).astype(jnp.int32)
+    logp = jnp.take_along_axis(jax.nn.log_softmax(logits), a[..., None], axis=-1)[..., 0]
+    return a, logp
+
+
+class Trainer(NamedTuple):
+    """The pieces of one configured trainer (all pure; vmap them over seeds).
+
+    init(key) -> Runner; update(runner) -> (runner, metrics); chunk(runner) -> (runner, metrics
+    summed/averaged over ``updates_per_chunk`` updates); train(key) -> (runner, per-chunk
+    metrics ``[num_chunks]``).
+    """
+
+    config: Config
+    actor: Actor
+    critic: Critic
+    init: Any
+    update: Any
+    chunk: Any
+    train: Any
+
+
+EPISODE_KEYS = ("episodes", "return_sum", "wins", "draws", "length_sum")
+
+
+def make_trainer(config: Config, base_params: Params | None = None) -> Trainer:
+    """Build the pure training functions for ``config`` (content: ``base_params``, default the
+    reference content, with each episode's skill range drawn from ``config.skill_ranges``)."""
+    cfg = config
+    base = raidjax.make_params(skill_range=cfg.skill_ranges[0]) if base_params is None else base_params
+    range_set = jnp.asarray(cfg.skill_ranges, jnp.float32)
+    multi_range = len(cfg.skill_ranges) > 1
+    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention)
+    critic = Critic(cfg.hidden, cfg.layers, cfg.heads)
+    n, t_len = cfg.n_arenas, cfg.n_steps
+    if (n * t_len) % cfg.n_minibatches:
+        raise ValueError(f"n_minibatches: {cfg.n_minibatches} does not divide {n * t_len} decisions per update")
+    grad_steps = cfg.num_updates * cfg.update_epochs * cfg.n_minibatches
+    lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
+    clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
+    tx = optax.chain(*clip, optax.adam(lr, eps=1e-5))
+    env_params_of = jax.vmap(lambda r: with_range(base, r))
+    step_all = jax.vmap(raidjax.step_autoreset)
+
+    def init(key: jax.Array) -> Runner:
+        k_a, k_c, k_env, k_rng, k_run = jax.random.split(key, 5)
+        ranges = jax.random.choice(k_rng, range_set, (n,))
+        obs, state = jax.vmap(raidjax.reset)(jax.random.split(k_env, n), env_params_of(ranges))
+        obs0 = jax.tree.map(lambda x: x[0], obs)
+        params = {"actor": actor.init(k_a, obs0),
+                  "critic": critic.init(k_c, obs0, jnp.zeros(obs0.alive.shape, jnp.int32))}
+        zf = jnp.zeros(n, jnp.float32)
+        return Runner(params, tx.init(params), state, obs, ranges, zf, jnp.zeros(n, jnp.int32), k_run,
+                      jnp.int32(0))
+
+    def rollout_step(runner: Runner, _):
+        key, k_act, k_env, k_rng = jax.random.split(runner.key, 4)
+        p, obs = runner.params, runner.obs
+        action, logp = sample_actions(k_act, actor.apply(p["actor"], obs), obs.alive)
+        value, baseline = critic.apply(p["critic"], obs, action)
+        nxt, state, _, done, info = step_all(jax.random.split(k_env, n), runner.env_state, action,
+                                             env_params_of(runner.ranges))
+        next_value = critic.apply(p["critic"], info["final_observation"], method=Critic.value)
+        ranges = runner.ranges
+        if multi_range:  # new episodes draw a new range; re-observe them under it
+            ranges = jnp.where(done, jax.random.choice(k_rng, range_set, (n,)), ranges)
+            fresh = jax.vmap(raidjax.observe)(state, env_params_of(ranges))
+            nxt = jax.tree.map(lambda a, b: jnp.where(done.reshape((n,) + (1,) * (a.ndim - 1)), a, b), fresh, nxt)
+        reward = team_reward(info, done)
+        ep_ret, ep_len = runner.ep_return + reward, runner.ep_length + 1
+        won = done & (info["result"] == WIN)
+        ep = {"episodes": done.sum(), "return_sum": jnp.sum(ep_ret * done), "wins": won.sum(),
+              "draws": jnp.sum(done & info["truncated"]), "length_sum": jnp.sum(ep_len * done)}
+        tr = Transition(obs, action, logp, obs.alive, value, baseline, next_value, reward, done,
+                        info["terminated"])
+        runner = runner.replace(env_state=state, obs=nxt, ranges=ranges, key=key,
+                                ep_return=jnp.where(done, 0.0, ep_ret), ep_length=jnp.where(done, 0, ep_len))
+        return runner, (tr, ep)
+
+    def update(runner: Runner):
+        runner, (traj, ep) = jax.lax.scan(rollout_step, runner, None, t_len)
+        returns = lambda_returns(traj.reward, traj.next_value, traj.done, traj.terminated, cfg.gamma, cfg.lam)
+        adv = advantages(returns, traj.baseline, traj.alive)
+        flat = lambda x: x.reshape((t_len * n,) + x.shape[2:])
+        batch = jax.tree.map(flat, Batch(traj.obs, traj.action, traj.logp, traj.alive, traj.value,
+                                         traj.baseline, returns, adv))
+        frac = 1.0 - runner.update / cfg.num_updates
+        beta = cfg.ent_coef * frac if cfg.anneal_ent else cfg.ent_coef
+
+        def minibatch(carry, mb):
+            params, opt_state = carry
+            grads, aux = jax.grad(loss_fn, has_aux=True)(params, mb, actor, critic, cfg.clip_eps, beta)
+            upd, opt_state = tx.update(grads, opt_state, params)
+            return (optax.apply_updates(params, upd), opt_state), aux
+
+        def epoch(carry, k):
+            perm = jax.random.permutation(k, t_len * n)
+            mbs = jax.tree.map(lambda x: x[perm].reshape((cfg.n_minibatches, -1) + x.shape[1:]), batch)
+            return jax.lax.scan(minibatch, carry, mbs)
+
+        key, k_perm = jax.random.split(runner.key)
+        (params, opt_state), aux = jax.lax.scan(epoch, (runner.params, runner.opt_state),
+                                                jax.random.split(k_perm, cfg.update_epochs))
+        metrics = {k: v.mean() for k, v in aux.items()}
+        metrics.update({k: v.sum().astype(jnp.float32) for k, v in ep.items()})
+        metrics["value_mean"] = traj.value.mean()
+        runner = runner.replace(params=params, opt_state=opt_state, key=key, update=runner.update + 1)
+        return runner, metrics
+
+    def chunk(runner: Runner):
+        runner, m = jax.lax.scan(lambda r, _: update(r), runner, None, cfg.updates_per_chunk)
+        return runner, {k: (v.sum() if k in EPISODE_KEYS else v.mean()) for k, v in m.items()}
+
+    def train(key: jax.Array):
+        runner = init(key)
+        return jax.lax.scan(lambda r, _: chunk(r), runner, None, cfg.num_chunks)
+
+    return Trainer(cfg, actor, critic, init, update, chunk, train)
+
+
+def make_train(config: Config, base_params: Params | None = None):
+    """``train(key: uint32[2]) -> (Runner, metrics)``: a whole run, pure and jittable; vmap it
+    over keys to train seeds together. ``metrics`` holds one row per chunk (``[num_chunks]``;
+    per-update values are reduced on device), so its size never depends on the chunk length."""
+    return make_trainer(config, base_params).train
+
+
+def summarize(m: dict) -> dict:
+    """Host-side per-chunk row from chunk metrics (seed axes averaged / summed): return per
+    episode, win rate, episode length, losses. Returns a dict of Python floats."""
+    m = {k: float(jnp.mean(v)) if k not in EPISODE_KEYS else float(jnp.sum(v)) for k, v in m.items()}
+    eps = max(m["episodes"], 1.0)
+    out = {"episodes": m["episodes"], "return": m["return_sum"] / eps, "win_rate": m["wins"] / eps,
+           "draw_rate": m["draws"] / eps, "length": m["length_sum"] / eps}
+    out.update({k: v for k, v in m.items() if k not in EPISODE_KEYS})
+    return out
+
+
+if __name__ == "__main__":
+    from trainers.cli import main
+
+    main()

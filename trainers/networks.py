@@ -1,0 +1,191 @@
+"""Flax networks of MA-POCA (SPEC §12): a shared entity-attention actor and a centralised critic
+that gives both the group value V(s) and the counterfactual baselines Q(s, a_-i).
+
+Shapes: ``P`` players, ``A = raidjax.types.N_ACTIONS`` actions, ``H`` hidden width, ``...`` any
+leading batch axes. Every module takes a ``raidjax.Observation`` whose fields carry the player
+axis ``P`` right after the batch axes (as ``raidjax.step`` returns them).
+
+Dead players are handled by masks, never by zero inputs alone: a dead teammate (actor) and a
+dead agent (critic) are removed from attention keys and from the mean-pools, so the network
+cannot tell a dead player from "no player" and can never mistake zeros for a live state.
+"""
+
+from __future__ import annotations
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+
+from raidjax.types import N_ACTIONS, Observation
+
+NEG = -1e9  # additive mask for logits/attention (finite: an all-masked row stays NaN-free)
+
+
+def masked_mean(x: jax.Array, mask: jax.Array) -> jax.Array:
+    """Mean of ``x: [..., N, H]`` over the entities where ``mask: bool[..., N]``; zeros if none.
+
+    Returns:
+        ``[..., H]``.
+    """
+    m = mask.astype(x.dtype)[..., None]
+    return jnp.sum(x * m, axis=-2) / jnp.maximum(jnp.sum(m, axis=-2), 1.0)
+
+
+class ResidualSelfAttention(nn.Module):
+    """Residual multi-head self-attention over entities with a key mask, then a masked mean-pool.
+
+    ``__call__(x, mask)``: ``x: [..., N, H]``, ``mask: bool[..., N]`` -> ``[..., H]`` (zeros when no
+    entity is valid) equals ``masked_mean(x + Out(MHA(LN(x))), mask)``; the output projection is
+    linear, so it is applied after pooling (same function, N times cheaper).
+    ``project(x)`` and ``attend(x, qkv, mask)`` split the work so that callers can share the
+    per-token projections between several entity sets (the counterfactual baselines).
+    """
+
+    features: int
+    heads: int = 4
+
+    def setup(self):
+        self.norm = nn.LayerNorm()
+        self.qkv = nn.Dense(3 * self.features)
+        self.out = nn.Dense(self.features)
+
+    def project(self, x: jax.Array) -> jax.Array:
+        """Per-token ``qkv: [..., N, 3, heads, H / heads]``."""
+        h = self.features
+        return self.qkv(self.norm(x)).reshape(*x.shape[:-1], 3, self.heads, h // self.heads)
+
+    def attend(self, x: jax.Array, qkv: jax.Array, mask: jax.Array) -> jax.Array:
+        """Masked attention from projected tokens, residual, masked mean-pool: ``[..., H]``."""
+        q, k, v = qkv[..., 0, :, :], qkv[..., 1, :, :], qkv[..., 2, :, :]
+        # Broadcast-multiply-and-sum instead of einsum: XLA:CPU fuses these, while tiny batched
+        # matmuls ([N x N] per head) run far slower there.
+        logits = jnp.sum(q[..., :, None, :, :] * k[..., None, :, :, :], axis=-1) / jnp.sqrt(q.shape[-1])
+        logits = logits + jnp.where(mask, 0.0, NEG)[..., None, :, None]  # [..., q, k, heads]
+        w = jax.nn.softmax(logits, axis=-2)
+        att = jnp.sum(w[..., None] * v[..., None, :, :, :], axis=-3).reshape(x.shape)
+        return masked_mean(x, mask) + self.out(masked_mean(att, mask))
+
+    def __call__(self, x: jax.Array, mask: jax.Array) -> jax.Array:
+        """Pooled ``[..., H]``: see the class docstring."""
+        return self.attend(x, self.project(x), mask)
+
+
+class MLP(nn.Module):
+    """``layers`` ReLU Dense layers of width ``hidden``: ``[..., D] -> [..., hidden]``."""
+
+    hidden: int
+    layers: int
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        for _ in range(self.layers):
+            x = nn.relu(nn.Dense(self.hidden)(x))
+        return x
+
+
+def masked_logits(logits: jax.Array, action_mask: jax.Array) -> jax.Array:
+    """Logits with invalid actions pushed to ``NEG``: ``[..., A]`` -> ``[..., A]``."""
+    return jnp.where(action_mask, logits, NEG)
+
+
+class Actor(nn.Module):
+    """Shared per-player policy: self (own + boss + wall features) and entities (teammates, and
+    with ``proj_attention`` the nearest hostile projectiles) -> residual self-attention ->
+    masked mean-pool -> MLP -> masked logits. Without ``proj_attention`` the K projectile slots
+    (sorted nearest first, masked slots zero) join the self features instead (cheaper on CPU).
+
+    ``obs`` fields ``[..., P, ...]`` -> logits ``float32[..., P, A]`` (invalid actions at ``NEG``).
+    """
+
+    hidden: int = 64
+    layers: int = 2
+    heads: int = 4
+    proj_attention: bool = True
+
+    @nn.compact
+    def __call__(self, obs: Observation) -> jax.Array:
+        h = self.hidden
+        self_parts = [obs.self_features, obs.boss, obs.walls]
+        if not self.proj_attention:
+            lead = obs.projectile_mask.shape
+            self_parts += [obs.projectiles.reshape(*lead[:-1], -1), obs.projectile_mask.astype(jnp.float32)]
+        s = nn.relu(nn.Dense(h, name="self_enc")(jnp.concatenate(self_parts, axis=-1)))
+        # Entity embeddings see the self encoding (as ML-Agents' EntityEmbedding does).
+        ctx = nn.Dense(h, use_bias=False, name="self_ctx")(s)[..., None, :]
+        ents = nn.relu(nn.Dense(h, name="mate_emb")(obs.teammates) + ctx)
+        mask = obs.teammate_mask
+        if self.proj_attention:
+            projs = nn.relu(nn.Dense(h, name="proj_emb")(obs.projectiles) + ctx)
+            ents = jnp.concatenate([ents, projs], axis=-2)
+            mask = jnp.concatenate([mask, obs.projectile_mask], axis=-1)
+        pooled = ResidualSelfAttention(h, self.heads, name="rsa")(ents, mask)
+        x = MLP(h, self.layers, name="body")(jnp.concatenate([s, pooled], axis=-1))
+        logits = nn.Dense(N_ACTIONS, kernel_init=nn.initializers.orthogonal(0.01), name="pi")(x)
+        return masked_logits(logits, obs.action_mask)
+
+
+def critic_inputs(obs: Observation) -> jax.Array:
+    """Per-agent critic input ``float32[..., P, D]``: the flat observation view (the fields of
+    ``Observation.flat``, masks as 0/1), for any number of leading batch axes."""
+    lead = obs.alive.shape
+    parts = [obs.self_features, obs.boss, obs.teammates, obs.teammate_mask, obs.projectiles,
+             obs.projectile_mask, obs.walls, obs.action_mask]
+    return jnp.concatenate([x.astype(jnp.float32).reshape(*lead, -1) for x in parts], axis=-1)
+
+
+class Critic(nn.Module):
+    """Centralised critic. Agents are entities: an observation embedding (value and agent i in
+    its own baseline) or an observation-action embedding (teammates in a baseline), then shared
+    residual self-attention, masked mean-pool, the normalised agent count, an MLP and a head.
+
+    Methods: ``value(obs) -> [...]`` and ``baseline(obs, actions) -> [..., P]``;
+    ``__call__`` returns both (used for ``init``).
+    """
+
+    hidden: int = 64
+    layers: int = 2
+    heads: int = 4
+
+    def setup(self):
+        self.obs_emb = nn.Dense(self.hidden)
+        self.obs_act_emb = nn.Dense(self.hidden)
+        self.rsa = ResidualSelfAttention(self.hidden, self.heads)
+        self.body = MLP(self.hidden, self.layers)
+        self.value_head = nn.Dense(1)
+        self.baseline_head = nn.Dense(1)
+
+    def _head(self, pooled: jax.Array, mask: jax.Array, head) -> jax.Array:
+        count = jnp.sum(mask, axis=-1, keepdims=True).astype(pooled.dtype) / mask.shape[-1]
+        return head(self.body(jnp.concatenate([pooled, count], axis=-1)))[..., 0]
+
+    def value(self, obs: Observation) -> jax.Array:
+        """V(s) over the alive agents: ``obs [..., P, ...]`` -> ``float32[...]``."""
+        e = nn.relu(self.obs_emb(critic_inputs(obs)))
+        return self._head(self.rsa(e, obs.alive), obs.alive, self.value_head)
+
+    def baseline(self, obs: Observation, actions: jax.Array) -> jax.Array:
+        """Counterfactual baselines b_i = Q(s, a_-i): agent i enters with its observation only,
+        alive teammates with (observation, action); dead teammates are masked out.
+
+        Args:
+            obs: fields ``[..., P, ...]``.
+            actions: ``int32[..., P]``.
+
+        Returns:
+            ``float32[..., P]`` (row i is agent i's baseline; meaningful where agent i is alive).
+        """
+        x = critic_inputs(obs)
+        p = x.shape[-2]
+        e_o = nn.relu(self.obs_emb(x))
+        e_oa = nn.relu(self.obs_act_emb(jnp.concatenate([x, jax.nn.one_hot(actions, N_ACTIONS)], axis=-1)))
+        qkv_o, qkv_oa = self.rsa.project(e_o), self.rsa.project(e_oa)  # per-token, shared by all i
+        eye = jnp.eye(p, dtype=bool)  # [i, j]: token j of agent i's baseline is observation-only
+        tokens = jnp.where(eye[..., None], e_o[..., None, :, :], e_oa[..., None, :, :])  # [..., i, j, H]
+        qkv = jnp.where(eye[..., None, None, None], qkv_o[..., None, :, :, :, :], qkv_oa[..., None, :, :, :, :])
+        mask = obs.alive[..., None, :] | eye  # agent i always present in its own baseline
+        pooled = self.rsa.attend(tokens, qkv, mask)
+        return self._head(pooled, mask, self.baseline_head)
+
+    def __call__(self, obs: Observation, actions: jax.Array):
+        """``(value [...], baseline [..., P])``."""
+        return self.value(obs), self.baseline(obs, actions)

@@ -121,7 +121,7 @@ def main(argv=None) -> None:
     if args.policy in raidjax.policies.BY_NAME:
         policy = raidjax.policies.BY_NAME[args.policy]
     else:
-        from trainers.mapoca import load_policy  # trained team (issue 3)
+        from trainers.checkpoint import load_policy  # a trained MA-POCA team
 
         policy = load_policy(args.policy)
     record = jax.jit(raidjax.logs.record_episode, static_argnames=("policy", "n_decisions"))

@@ -61,6 +61,15 @@ def _fmt_time(s: float) -> str:
     return f"{int(s // 3600)}h{int(s % 3600 // 60):02d}m" if s >= 3600 else f"{int(s // 60)}m{int(s % 60):02d}s"
 
 
+def _tensorboard_writer(out: Path):
+    """A ``tensorboardX.SummaryWriter`` on ``DIR/tensorboard``, or ``None`` if not installed."""
+    try:
+        from tensorboardX import SummaryWriter
+    except ImportError:
+        return None
+    return SummaryWriter(str(out / "tensorboard"))
+
+
 class MetricsLog:
     """Append-only per-chunk rows in JSONL and CSV (rows past ``keep_chunks`` dropped on resume)."""
 
@@ -78,8 +87,16 @@ class MetricsLog:
                 w.writeheader()
                 w.writerows(rows)
 
+        self.tb = _tensorboard_writer(out)
+
     def write(self, row: dict) -> None:
-        """Append one row to both files."""
+        """Append one row to both files (and to TensorBoard when ``tensorboardX`` is installed)."""
+        if self.tb is not None:
+            step = int(row.get("env_steps", row.get("chunk", 0)))
+            for k, v in row.items():
+                if isinstance(v, int | float) and not isinstance(v, bool):
+                    self.tb.add_scalar(k, v, step)
+            self.tb.flush()
         with self.jsonl.open("a") as f:
             f.write(json.dumps(row) + "\n")
         new = self.fields is None

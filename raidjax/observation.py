@@ -11,7 +11,7 @@ import jax.numpy as jnp
 
 from raidjax.combat import F_SPEED, F_TEAM, effect_table, haste_factor, skill_targets, source_index, usable_slot
 from raidjax.movement import HALF_ARENA
-from raidjax.types import ACTION_HEURISTIC, CAST_1, HIT_ATTACK, N_ACTIONS, TRIGGER_PASSIVE, Observation, Params, State
+from raidjax.types import CAST_1, HIT_ATTACK, TRIGGER_PASSIVE, Observation, Params, State
 from raidjax.utils import pick
 
 POS_SCALE, COOL_SCALE, RANGE_SCALE, DAMAGE_SCALE, CAST_SCALE = 20.0, 5.0, 20.0, 100.0, 5.0
@@ -135,5 +135,3 @@ def observe(state: State, params: Params, table: jax.Array | None = None) -> Obs
         alive=alive_p,
     )
 
-
-__all__ = ["observe", "action_mask", "skill_damage", "ACTION_HEURISTIC", "N_ACTIONS"]

@@ -8,7 +8,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax.types import ACTION_HEURISTIC, CAST_1, N_ACTIONS, TRIGGER_PASSIVE, Observation, Params, State
+from raidjax.types import ACTION_HEURISTIC, CAST_1, TRIGGER_PASSIVE, Observation, Params, State
 from raidjax.utils import uniform_dice
 
 
@@ -50,4 +50,3 @@ def noop(key: jax.Array, obs: Observation, state: State, params: Params) -> jax.
 
 
 BY_NAME = {"random": random, "heuristic": heuristic, "noop": noop}
-assert N_ACTIONS == CAST_1 + 3

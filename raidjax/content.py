@@ -180,6 +180,33 @@ def _dtype(kind: str):
     return jnp.int32 if kind in _INT_KINDS else jnp.float32
 
 
+def with_player_skill(params: Params, slot: int = 0, **fields) -> Params:
+    """Set skill fields of every player's skill slot ``slot`` (0-based); jittable, no validation.
+
+    For sweeps inside ``jit``/``vmap`` (e.g. a traced skill range per arena). Values are not
+    checked here: build the base with ``make_params`` and keep edits inside the ranges of
+    ``SKILL_SPECS`` (``validate_params`` checks concrete results).
+
+    Args:
+        params: one arena's ``Params`` (skills ``[U, S]``).
+        slot: skill slot index (static).
+        **fields: skill field name -> scalar or ``[P]`` value.
+
+    Returns:
+        ``Params`` with ``skills.<field>[:P, slot]`` replaced.
+
+    Raises:
+        ValueError: an unknown skill field.
+    """
+    unknown = set(fields) - set(SKILL_SPECS)
+    if unknown:
+        raise ValueError(f"with_player_skill: unknown skill field(s) {sorted(unknown)}; known: {list(SKILL_SPECS)}")
+    n_players = params.team.shape[-1] - 1
+    sk = params.skills
+    new = {k: getattr(sk, k).at[:n_players, slot].set(jnp.asarray(v, getattr(sk, k).dtype)) for k, v in fields.items()}
+    return params.replace(skills=sk.replace(**new))
+
+
 def default_params() -> Params:
     """The reference content (three mages with MagicMissile, range 5, against the Dragon).
 

@@ -28,6 +28,7 @@ import numpy as np
 from flax import struct
 
 import raidjax
+from raidjax.content import with_player_skill
 from raidjax.types import Params
 
 PARAM_NAMES = ("range", "cool_time", "cast_time", "coefficient")
@@ -137,15 +138,7 @@ def make_params(
 
 def skill_params(game: Params, skill: jax.Array) -> Params:
     """Put ``skill`` (``float32[4]``) into every player's skill slot 1 of ``game``; returns ``Params``."""
-    sk = game.skills
-    n = game.team.shape[-1] - 1
-
-    def put(arr, v):
-        return arr.at[:n, 0].set(v)
-
-    sk = sk.replace(range=put(sk.range, skill[0]), cool_time=put(sk.cool_time, skill[1]),
-                    cast_time=put(sk.cast_time, skill[2]), coefficient=put(sk.coefficient, skill[3]))
-    return game.replace(skills=sk)
+    return with_player_skill(game, **dict(zip(PARAM_NAMES, skill, strict=True)))
 
 
 def play_outcomes(key: jax.Array, game: Params, skill: jax.Array, n_games: int) -> jax.Array:

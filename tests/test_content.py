@@ -225,3 +225,17 @@ def test_broadcast_params_layouts_and_errors(ref_params):
         broadcast_params(groups, 5)
     with pytest.raises(ValueError, match="batch axes"):
         broadcast_params(jax.tree.map(lambda x: x[None], groups), 4)
+
+
+def test_with_player_skill_edits_players_only_and_traces():
+    base = raidjax.make_params()
+    ranges = jnp.array([3.0, 11.0])
+    batch = jax.jit(jax.vmap(lambda r: raidjax.with_player_skill(base, range=r, cast_time=1.0)))(ranges)
+    assert batch.skills.range.shape == (2, 4, 3)
+    assert batch.skills.range[:, :3, 0].tolist() == [[3.0] * 3, [11.0] * 3]
+    assert batch.skills.cast_time[:, :3, 0].tolist() == [[1.0] * 3] * 2
+    assert float(batch.skills.range[0, 3, 0]) == float(base.skills.range[3, 0])  # boss untouched
+    assert batch.skills.range[:, :3, 1].tolist() == [base.skills.range[:3, 1].tolist()] * 2  # slot 2 untouched
+    raidjax.validate_params(batch)  # the edited contents are valid
+    with pytest.raises(ValueError, match="unknown skill field"):
+        raidjax.with_player_skill(base, rnage=3.0)

@@ -35,6 +35,7 @@ import optax
 from flax import struct
 
 import raidjax
+from raidjax.content import with_player_skill
 from raidjax.env import DAMAGE_REWARD, WIN_REWARD
 from raidjax.types import WIN, Observation, Params, State
 from trainers.config import Config
@@ -177,13 +178,6 @@ def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: 
     return loss, aux
 
 
-def with_range(base: Params, skill_range: jax.Array) -> Params:
-    """``base`` with every player's skill-slot-1 range set to ``skill_range`` (float32[])."""
-    n_players = base.team.shape[0] - 1
-    rng = base.skills.range.at[:n_players, 0].set(skill_range)
-    return base.replace(skills=base.skills.replace(range=rng))
-
-
 def sample_actions(key, logits: jax.Array, alive: jax.Array, deterministic: bool = False):
     """Sample from masked logits ``[..., P, A]``; dead players get action 0.
 
@@ -232,7 +226,7 @@ def make_trainer(config: Config, base_params: Params | None = None) -> Trainer:
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
     clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
     tx = optax.chain(*clip, optax.adam(lr, eps=1e-5))
-    env_params_of = jax.vmap(lambda r: with_range(base, r))
+    env_params_of = jax.vmap(lambda r: with_player_skill(base, range=r))
     step_all = jax.vmap(raidjax.step_autoreset)
 
     def init(key: jax.Array) -> Runner:

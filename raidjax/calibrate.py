@@ -18,6 +18,8 @@ import tempfile
 import time
 
 import jax
+import jax.numpy as jnp
+import numpy as np
 
 import raidjax
 
@@ -39,18 +41,19 @@ def measure(n_games: int, seed: int = 0, ranges=RANGES) -> dict:
         ``{policy: {"win_rate": [..], "stderr": [..], "mean_length": [..]}}`` for
         ``policy`` in ``("heuristic", "random")``, one entry per range.
     """
+    contents = [raidjax.make_params(skill_range=r) for r in ranges]
+    batch = jax.tree.map(lambda *x: jnp.stack(x), *contents)  # one content per group of games
     out = {}
-    for name in ("heuristic", "random"):
+    for i, name in enumerate(("heuristic", "random")):
         policy = raidjax.policies.BY_NAME[name]
-        rows = {"win_rate": [], "stderr": [], "mean_length": []}
-        for i, r in enumerate(ranges):
-            params = raidjax.make_params(skill_range=r)
-            res = raidjax.playtest(jax.random.key(seed * 1000 + i), params, policy, n_games)
-            w = float(raidjax.win_rate(res))
-            rows["win_rate"].append(round(w, 4))
-            rows["stderr"].append(round(math.sqrt(max(w * (1 - w), 1e-12) / n_games), 4))
-            rows["mean_length"].append(round(float(res["length"].mean()), 1))
-        out[name] = rows
+        res = raidjax.playtest(jax.random.key(seed * 1000 + i), batch, policy, n_games * len(ranges))
+        wins = np.asarray(res["outcome"] == raidjax.types.WIN).reshape(len(ranges), n_games).mean(axis=1)
+        length = np.asarray(res["length"]).reshape(len(ranges), n_games).mean(axis=1)
+        out[name] = {
+            "win_rate": [round(float(w), 4) for w in wins],
+            "stderr": [round(math.sqrt(max(w * (1 - w), 1e-12) / n_games), 4) for w in wins],
+            "mean_length": [round(float(x), 1) for x in length],
+        }
     return out
 
 

@@ -16,12 +16,12 @@ from raidjax import catalogue, logs, policies, types  # noqa: E402
 from raidjax.content import default_params, make_params, validate_params, with_player_skill  # noqa: E402
 from raidjax.env import reset, step, step_autoreset  # noqa: E402
 from raidjax.observation import observe  # noqa: E402
-from raidjax.playtest import playtest, win_rate  # noqa: E402
+from raidjax.playtest import playtest, playtest_occupancy, win_rate  # noqa: E402
 from raidjax.types import EnvConfig, Observation, Params, State  # noqa: E402
 
 __version__ = "0.1.0"
 __all__ = [
     "catalogue", "logs", "policies", "types", "default_params", "make_params", "validate_params", "with_player_skill",
-    "reset", "step", "step_autoreset", "observe", "playtest", "win_rate",
+    "reset", "step", "step_autoreset", "observe", "playtest", "playtest_occupancy", "win_rate",
     "EnvConfig", "Observation", "Params", "State",
 ]

@@ -29,7 +29,8 @@ def _generate(key, policy, policy_params, params: pcg.PCGParams, targets, episod
 
     def body(carry):
         i, obs, state = carry
-        ks = jax.random.split(jax.random.fold_in(k_loop, i), 2 * n).reshape(2, n)
+        ks = jax.random.split(jax.random.fold_in(k_loop, i), 2 * n)  # raw or typed keys
+        ks = (ks[:n], ks[n:])
         act = jax.vmap(lambda k, o, s: policy(policy_params, k, o, s, params))(ks[0], obs, state)
         obs2, state2, _, _, _ = jax.vmap(lambda k, s, a: pcg.step(k, s, a, params))(ks[1], state, act)
         keep = lambda old, new: jnp.where(state.done.reshape((-1,) + (1,) * (new.ndim - 1)), old, new)

@@ -16,6 +16,7 @@ from helpers import ACTION_HEURISTIC, RESET
 
 import raidjax
 from raidjax import policies
+from raidjax.movement import HALF_ARENA
 from raidjax.types import EnvConfig
 
 N = 4
@@ -103,3 +104,29 @@ def test_heuristic_and_noop_policies(ref_params):
     obs, s = RESET(jax.random.key(0), ref_params)
     assert policies.heuristic(jax.random.key(0), obs, s, ref_params).tolist() == [ACTION_HEURISTIC] * 3
     assert policies.noop(jax.random.key(0), obs, s, ref_params).tolist() == [0, 0, 0]
+
+
+def test_playtest_accepts_raw_and_typed_keys():
+    """A legacy ``PRNGKey`` (uint32[2]) and a typed key give the same games (same stream)."""
+    typed = jax.device_get(raidjax.playtest(jax.random.key(3), WIN, policies.heuristic, N))
+    raw = jax.device_get(raidjax.playtest(jax.random.PRNGKey(3), WIN, policies.heuristic, N))
+    np.testing.assert_array_equal(typed["outcome"], raw["outcome"])
+    np.testing.assert_array_equal(typed["length"], raw["length"])
+
+
+def test_playtest_occupancy_counts_spawn_cells_of_a_standing_team():
+    """Players that never move occupy only their spawn cells: each player's map is the
+    histogram of its spawn cells over the games, as computed directly from ``reset``."""
+    n, bins = 8, 24
+    key = jax.random.key(5)
+    occ = np.asarray(raidjax.playtest_occupancy(key, DRAW, policies.noop, n, bins=bins))
+    assert occ.shape == (3, bins, bins)
+    np.testing.assert_allclose(occ.sum((1, 2)), 1.0, rtol=1e-5)
+    # playtest's reset stream: the first half of split(key)
+    _, state = jax.vmap(raidjax.reset, in_axes=(0, None))(jax.random.split(jax.random.split(key)[0], n), DRAW)
+    half = HALF_ARENA
+    cells = np.clip(np.floor((np.asarray(state.pos[:, :3]) + half) / (2 * half) * bins).astype(int), 0, bins - 1)
+    for p in range(3):
+        expect = np.zeros((bins, bins))
+        np.add.at(expect, (cells[:, p, 0], cells[:, p, 1]), 1.0 / n)
+        np.testing.assert_allclose(occ[p], expect, atol=1e-6)

@@ -267,3 +267,16 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path):
             f.write_bytes(b"garbage")
     with pytest.raises(checkpoint.CheckpointError, match="corrupted"):
         checkpoint.load_policy(tmp_path)
+
+
+def test_range_table_tiles_sets_uniformly():
+    from trainers.mapoca import RANGE_TABLE, range_table
+
+    for ranges in [(5.0,), (5.0, 9.0), (5.0, 9.0, 13.0), (5.0, 9.0, 13.0, 17.0)]:
+        t = np.asarray(range_table(ranges))
+        assert t.shape == (RANGE_TABLE,)
+        values, counts = np.unique(t, return_counts=True)
+        np.testing.assert_array_equal(values, sorted(ranges))
+        assert np.all(counts == RANGE_TABLE // len(ranges))  # every value equally likely
+    with pytest.raises(ValueError, match="skill_ranges: 5 values"):
+        range_table((1.0, 2.0, 3.0, 4.0, 5.0))

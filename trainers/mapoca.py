@@ -50,6 +50,8 @@ class Runner:
     opt_state: Any
     env_state: State  # [N]
     obs: Observation  # [N, P, ...]
+    content: Params  # the run's base content (unbatched); each episode sets its skill range
+    range_set: jax.Array  # float32[RANGE_TABLE] skill ranges drawn per episode (see range_table)
     ranges: jax.Array  # float32[N] skill range of each arena's current episode
     ep_return: jax.Array  # float32[N] team return of the running episodes
     ep_length: jax.Array  # int32[N]
@@ -208,15 +210,39 @@ class Trainer(NamedTuple):
 
 
 EPISODE_KEYS = ("episodes", "return_sum", "wins", "draws", "length_sum")
+RANGE_TABLE = 12  # lcm(1, 2, 3, 4): sets of 1-4 ranges tile it exactly, so draws stay uniform
 
 
-def make_trainer(config: Config, base_params: Params | None = None) -> Trainer:
-    """Build the pure training functions for ``config`` (content: ``base_params``, default the
-    reference content, with each episode's skill range drawn from ``config.skill_ranges``)."""
+def range_table(ranges) -> jax.Array:
+    """The set of skill ranges a run draws from, tiled to ``float32[RANGE_TABLE]``.
+
+    A uniform draw over the table is a uniform draw over the set, and every run's table has the
+    same shape, so runs with different range sets are one vmapped program (``experiments``).
+
+    Raises:
+        ValueError: ``len(ranges)`` does not divide ``RANGE_TABLE``.
+    """
+    ranges = tuple(float(r) for r in ranges)
+    if not ranges or RANGE_TABLE % len(ranges):
+        raise ValueError(f"skill_ranges: {len(ranges)} values given; allowed 1, 2, 3, 4, 6 or 12")
+    return jnp.asarray(ranges * (RANGE_TABLE // len(ranges)), jnp.float32)
+
+
+def make_trainer(config: Config, base_params: Params | None = None, redraw_ranges: bool | None = None) -> Trainer:
+    """Build the pure training functions for ``config``.
+
+    Args:
+        config: hyper-parameters.
+        base_params: default content of ``init`` (default: the reference content).
+        redraw_ranges: draw a new skill range at every episode start (static; default: when
+            ``config.skill_ranges`` has several values). ``init(key, content, range_set)`` may
+            give each vmapped run its own content and range set; set this ``True`` when any
+            run's set has several values.
+    """
     cfg = config
     base = raidjax.make_params(skill_range=cfg.skill_ranges[0]) if base_params is None else base_params
-    range_set = jnp.asarray(cfg.skill_ranges, jnp.float32)
-    multi_range = len(cfg.skill_ranges) > 1
+    default_set = range_table(cfg.skill_ranges)
+    multi_range = len(cfg.skill_ranges) > 1 if redraw_ranges is None else redraw_ranges
     actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention)
     critic = Critic(cfg.hidden, cfg.layers, cfg.heads)
     n, t_len = cfg.n_arenas, cfg.n_steps
@@ -226,19 +252,23 @@ def make_trainer(config: Config, base_params: Params | None = None) -> Trainer:
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
     clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
     tx = optax.chain(*clip, optax.adam(lr, eps=1e-5))
-    env_params_of = jax.vmap(lambda r: with_player_skill(base, range=r))
+    env_params_of = jax.vmap(lambda content, r: with_player_skill(content, range=r), in_axes=(None, 0))
     step_all = jax.vmap(raidjax.step_autoreset)
 
-    def init(key: jax.Array) -> Runner:
+    def init(key: jax.Array, content: Params | None = None, range_set: jax.Array | None = None) -> Runner:
+        """A fresh runner; ``content`` (unbatched Params) and ``range_set`` (``float32[RANGE_TABLE]``,
+        see ``range_table``) default to ``base_params`` and ``config.skill_ranges``."""
+        content = base if content is None else content
+        range_set = default_set if range_set is None else range_set
         k_a, k_c, k_env, k_rng, k_run = jax.random.split(key, 5)
         ranges = jax.random.choice(k_rng, range_set, (n,))
-        obs, state = jax.vmap(raidjax.reset)(jax.random.split(k_env, n), env_params_of(ranges))
+        obs, state = jax.vmap(raidjax.reset)(jax.random.split(k_env, n), env_params_of(content, ranges))
         obs0 = jax.tree.map(lambda x: x[0], obs)
         params = {"actor": actor.init(k_a, obs0),
                   "critic": critic.init(k_c, obs0, jnp.zeros(obs0.alive.shape, jnp.int32))}
         zf = jnp.zeros(n, jnp.float32)
-        return Runner(params, tx.init(params), state, obs, ranges, zf, jnp.zeros(n, jnp.int32), k_run,
-                      jnp.int32(0))
+        return Runner(params, tx.init(params), state, obs, content, range_set, ranges, zf,
+                      jnp.zeros(n, jnp.int32), k_run, jnp.int32(0))
 
     def rollout_step(runner: Runner, _):
         key, k_act, k_env, k_rng = jax.random.split(runner.key, 4)
@@ -246,12 +276,12 @@ def make_trainer(config: Config, base_params: Params | None = None) -> Trainer:
         action, logp = sample_actions(k_act, actor.apply(p["actor"], obs), obs.alive)
         value, baseline = critic.apply(p["critic"], obs, action)
         nxt, state, _, done, info = step_all(jax.random.split(k_env, n), runner.env_state, action,
-                                             env_params_of(runner.ranges))
+                                             env_params_of(runner.content, runner.ranges))
         next_value = critic.apply(p["critic"], info["final_observation"], method=Critic.value)
         ranges = runner.ranges
         if multi_range:  # new episodes draw a new range; re-observe them under it
-            ranges = jnp.where(done, jax.random.choice(k_rng, range_set, (n,)), ranges)
-            fresh = jax.vmap(raidjax.observe)(state, env_params_of(ranges))
+            ranges = jnp.where(done, jax.random.choice(k_rng, runner.range_set, (n,)), ranges)
+            fresh = jax.vmap(raidjax.observe)(state, env_params_of(runner.content, ranges))
             nxt = jax.tree.map(lambda a, b: jnp.where(done.reshape((n,) + (1,) * (a.ndim - 1)), a, b), fresh, nxt)
         reward = team_reward(info, done)
         ep_ret, ep_len = runner.ep_return + reward, runner.ep_length + 1

@@ -1,0 +1,107 @@
+"""Execute the notebooks in ``notebooks/`` at smoke scale (``RAIDJAX_SMOKE=1``) with nbclient."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+nbclient = pytest.importorskip("nbclient")
+nbformat = pytest.importorskip("nbformat")
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = ROOT / "notebooks"
+
+
+def execute(name: str, monkeypatch: pytest.MonkeyPatch, **env: str):
+    """Run ``notebooks/<name>`` in a fresh ``python3`` kernel from the repository root; return it."""
+    monkeypatch.setenv("RAIDJAX_SMOKE", "1")
+    # Smoke sizes run in milliseconds; XLA compilation dominates. The lowest LLVM optimisation
+    # level compiles about 40% faster (the notebooks' numbers are not checked here).
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_backend_optimization_level" not in flags:
+        monkeypatch.setenv("XLA_FLAGS", f"{flags} --xla_backend_optimization_level=0".strip())
+    for k, v in env.items():
+        monkeypatch.setenv(k, v)
+    nb = nbformat.read(NOTEBOOKS / name, as_version=4)
+    client = nbclient.NotebookClient(
+        nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(ROOT)}}
+    )
+    client.execute()  # raises CellExecutionError on the first failing cell
+    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
+    assert not errors, errors
+    return nb
+
+
+def output_text(nb) -> str:
+    """Everything the notebook printed or displayed as text (stdout, text/plain, text/markdown)."""
+    parts = []
+    for cell in nb.cells:
+        for out in cell.get("outputs", []):
+            if out.output_type == "stream":
+                parts.append(out.text)
+            for mime in ("text/plain", "text/markdown"):
+                if mime in out.get("data", {}):
+                    parts.append(out.data[mime])
+    return "\n".join(parts)
+
+
+def has_image(nb, mime: str) -> bool:
+    return any(mime in out.get("data", {}) for c in nb.cells for out in c.get("outputs", []))
+
+
+def test_notebooks_committed_without_outputs():
+    for path in sorted(NOTEBOOKS.glob("*.ipynb")):
+        nb = nbformat.read(path, as_version=4)
+        nbformat.validate(nb)
+        for cell in nb.cells:
+            if cell.cell_type == "code":
+                assert not cell.outputs and cell.execution_count is None, f"{path.name}: clear the outputs"
+
+
+def test_quickstart(monkeypatch):
+    nb = execute("quickstart.ipynb", monkeypatch)
+    text = output_text(nb)
+    assert "PT-HR" in text and "PT-RD" in text
+    assert "ValueError: range" in text
+    assert has_image(nb, "image/gif") and has_image(nb, "image/png")
+
+
+def test_balancing_sweep(monkeypatch):
+    nb = execute("balancing_sweep.ipynb", monkeypatch)
+    assert "4 ranges x 4 cool times = 16 contents" in output_text(nb)
+    assert has_image(nb, "image/png")
+
+
+def test_benchmark_results(monkeypatch, tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from experiments.runfolder import RunFolder, markdown_table
+
+    run = RunFolder(tmp_path / "run", {"scale": "smoke", "games": 16})
+    table = markdown_table(["agent", "range 5", "range 9"], [["PT-HR synthetic", 0.125, 0.5]])
+    run.write_table("win_rates", table)
+    run.write_csv("win_rates", [{"agent": "PT-HR", "range": 5, "win_rate": 0.125},
+                                {"agent": "PT-HR", "range": 9, "win_rate": 0.5}])
+    fig, ax = plt.subplots(figsize=(2, 2))
+    ax.plot([0, 1], [0, 1])
+    run.save_figure("curve", fig, dpi=30)
+    run.finish({"status": "synthetic"})
+
+    nb = execute("benchmark_results.ipynb", monkeypatch, RAIDJAX_RUN_DIR=str(run.out))
+    text = output_text(nb)
+    assert "| PT-HR synthetic | 0.125 | 0.500 |" in text  # the table, rendered as Markdown
+    assert "win_rates.csv" in text and "| PT-HR | 9 | 0.5 |" in text
+    assert json.loads((run.out / "summary.json").read_text())["status"] == "synthetic"
+    assert '"status": "synthetic"' in text
+    assert has_image(nb, "image/png")
+
+
+def test_benchmark_results_missing_folder(monkeypatch, tmp_path):
+    with pytest.raises(nbclient.exceptions.CellExecutionError, match="does not exist"):
+        execute("benchmark_results.ipynb", monkeypatch, RAIDJAX_RUN_DIR=str(tmp_path / "nowhere"))

@@ -11,6 +11,7 @@ import csv
 import json
 import os
 import time
+from functools import cache
 from pathlib import Path
 
 import jax
@@ -53,43 +54,87 @@ def _groups(config, seeds: int):
     return np.asarray([[t, t] for t, _ in pairs], np.float32), pairs
 
 
-def _write_metrics(out: Path, start_update: int, metrics: dict, steps_per_update: int) -> None:
-    m = jax.device_get(metrics)  # leaves [G, n]
+def metric_rows(start_update: int, metrics: dict, steps_per_update: int) -> list[dict]:
+    """One dict per update of a chunk: ``update``, ``env_steps`` and every metric averaged over the
+    groups (NaN when no group has a finite value), plus ``final_error_per_group`` (list of G floats).
+
+    Args:
+        start_update: updates done before the chunk.
+        metrics: chunk metrics, leaves ``[G, n]`` (groups x updates).
+        steps_per_update: generator steps per update and group.
+    """
+    m = jax.device_get(metrics)
     n = next(iter(m.values())).shape[1]
+    rows = []
+    for i in range(n):
+        u = start_update + i + 1
+        row = {k: float(np.nanmean(m[k][:, i])) if np.isfinite(m[k][:, i]).any() else float("nan") for k in sorted(m)}
+        rows.append({"update": u, "env_steps": u * steps_per_update, **row,
+                     "final_error_per_group": [float(x) for x in m["final_error"][:, i]]})
+    return rows
+
+
+def _write_metrics(out: Path, start_update: int, metrics: dict, steps_per_update: int) -> None:
+    rows = metric_rows(start_update, metrics, steps_per_update)
+    keys = sorted(k for k in rows[0] if k not in ("update", "env_steps", "final_error_per_group"))
     new = not (out / "metrics.csv").exists()
     with open(out / "metrics.csv", "a", newline="") as fc, open(out / "metrics.jsonl", "a") as fj:
         w = csv.writer(fc)
-        keys = sorted(m)
         if new:
             w.writerow(["update", "env_steps"] + keys)
-        for i in range(n):
-            u = start_update + i + 1
-            row = {k: float(np.nanmean(m[k][:, i])) if np.isfinite(m[k][:, i]).any() else float("nan") for k in keys}
-            w.writerow([u, u * steps_per_update] + [row[k] for k in keys])
-            fj.write(json.dumps({"update": u, "env_steps": u * steps_per_update, **row,
-                                 "final_error_per_group": [float(x) for x in m["final_error"][:, i]]}) + "\n")
+        for r in rows:
+            w.writerow([r["update"], r["env_steps"]] + [r[k] for k in keys])
+            fj.write(json.dumps(r) + "\n")
+
+
+@cache
+def method_policy(hidden: tuple, greedy: bool = False):
+    """One generator policy for PPO, PCG-HR and PCG-RD, so that ``pm.generate`` compiles once per
+    episode count rather than once per method: ``policy({"net": net_params, "method": int32[]}, key,
+    obs, state, params) -> int32[4]`` with method 0 = PPO (``make_policy(hidden, greedy)``),
+    1 = ``pcg.heuristic_policy``, 2 = ``pcg.random_policy``. ``method`` is not batched, so the
+    ``lax.switch`` stays a conditional and only the chosen branch runs."""
+    ppo = make_policy(tuple(hidden), greedy)
+
+    def policy(pp, key, obs, state, params):
+        return jax.lax.switch(pp["method"], [
+            lambda: ppo(pp["net"], key, obs, state, params),
+            lambda: pcg.heuristic_policy(None, key, obs, state, params),
+            lambda: pcg.random_policy(None, key, obs, state, params)])
+
+    return policy
 
 
 def evaluate(key, config, runner_params, labels, args) -> dict:
     """Controllability/diversity of PPO (every trained group), PCG-HR and PCG-RD on one protocol.
 
+    Args:
+        key: PRNG key.
+        config: the PPO ``Config``.
+        runner_params: network weights with a leading group axis ``[G, ...]``.
+        labels: ``_groups``' labels ``[(target or None, seed)] * G``.
+        args: namespace with ``eval_gen_games``, ``greedy``, ``eval_episodes`` (per target and
+            method; PPO's are split over the seeds), ``eval_games`` and ``no_baselines``.
+
     Returns a dict of per-method ``generate`` outputs (numpy arrays pooled over groups)."""
     p = pcg.make_params(n_games=args.eval_gen_games, max_edits=config.max_edits,
                         strict_length=config.strict_length, observe_target=config.observe_target)
-    policy = make_policy(tuple(config.hidden), args.greedy)
+    policy = method_policy(tuple(config.hidden), args.greedy)
     n_seeds = max(s for _, s in labels) + 1
     eps = max(1, args.eval_episodes // n_seeds)
     parts = []
     for g, (t, _) in enumerate(labels):
-        params_g = jax.tree.map(lambda x, g=g: x[g], runner_params)
+        params_g = {"net": jax.tree.map(lambda x, g=g: x[g], runner_params), "method": jnp.int32(0)}
         targets = pm.TARGETS if t is None else (t,)
         parts.append(pm.generate(jax.random.fold_in(key, g), policy, p, policy_params=params_g, targets=targets,
                                  episodes=eps, eval_games=args.eval_games))
     gens = {"PPO": {k: np.concatenate([d[k] for d in parts]) for k in parts[0]}}
     if not args.no_baselines:
-        for i, (name, pol) in enumerate((("PCG-HR", pcg.heuristic_policy), ("PCG-RD", pcg.random_policy))):
-            gens[name] = pm.generate(jax.random.fold_in(key, 10_000 + i), pol, p, episodes=args.eval_episodes,
-                                     eval_games=args.eval_games)
+        net0 = jax.tree.map(lambda x: x[0], runner_params)
+        for i, name in enumerate(("PCG-HR", "PCG-RD")):
+            gens[name] = pm.generate(jax.random.fold_in(key, 10_000 + i), policy, p,
+                                     policy_params={"net": net0, "method": jnp.int32(i + 1)},
+                                     episodes=args.eval_episodes, eval_games=args.eval_games)
     return gens
 
 

@@ -1,0 +1,245 @@
+"""Benchmark 2 report: controllability, diversity and yield tables beside the paper's numbers,
+and the t-SNE / controllability figures, from the generated skills of ``experiments.benchmark2``.
+
+Metrics are numpy (``raidjax.pcg_metrics`` through ``trainers.ppo_pcgrl_cli.summarize``); the
+paper's numbers are transcribed from its Tables "controllability" and "diversity" (RaidEnv §5.3).
+"""
+
+from __future__ import annotations
+
+import time
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from experiments.runfolder import RunFolder, markdown_table  # noqa: E402
+from raidjax import pcg  # noqa: E402
+from raidjax import pcg_metrics as pm  # noqa: E402
+from trainers.ppo_pcgrl_cli import summarize  # noqa: E402
+
+# Paper, controllability table: target -> (W_c mean, W_c SD, |W_t - W_c| mean, SD).
+PAPER_CONTROL = {
+    "PCG-HR": {0.1: (0.107, 0.065, 0.044, 0.049), 0.2: (0.206, 0.098, 0.074, 0.065),
+               0.3: (0.297, 0.108, 0.079, 0.073), 0.4: (0.416, 0.122, 0.089, 0.085),
+               0.5: (0.489, 0.133, 0.099, 0.089), 0.6: (0.592, 0.132, 0.097, 0.090),
+               0.7: (0.684, 0.113, 0.088, 0.073)},
+    "PPO": {0.1: (0.149, 0.242, 0.156, 0.191), 0.2: (0.266, 0.343, 0.268, 0.225),
+            0.3: (0.217, 0.189, 0.169, 0.119), 0.4: (0.377, 0.315, 0.276, 0.153),
+            0.5: (0.435, 0.334, 0.296, 0.167), 0.6: (0.606, 0.309, 0.276, 0.138),
+            0.7: (0.652, 0.354, 0.292, 0.205)},
+    "PCG-RD": {0.1: (0.354, 0.389, 0.335, 0.321), 0.2: (0.366, 0.381, 0.333, 0.249),
+               0.3: (0.418, 0.382, 0.348, 0.196), 0.4: (0.381, 0.394, 0.362, 0.154),
+               0.5: (0.390, 0.391, 0.379, 0.144), 0.6: (0.409, 0.395, 0.405, 0.168),
+               0.7: (0.387, 0.397, 0.445, 0.239)},
+}
+PAPER_MEAN_ERROR = {"PCG-HR": (0.081, 0.078), "PPO": (0.248, 0.183), "PCG-RD": (0.373, 0.221)}
+# Paper, diversity table: target -> SDs of (range, cool time, cast time, damage = coefficient, PC1).
+PAPER_DIVERSITY = {
+    "PCG-HR": {0.1: (0.258, 0.300, 0.269, 0.265, 0.302), 0.2: (0.262, 0.324, 0.249, 0.288, 0.298),
+               0.3: (0.271, 0.312, 0.265, 0.292, 0.312), 0.4: (0.252, 0.312, 0.233, 0.278, 0.304),
+               0.5: (0.257, 0.316, 0.236, 0.269, 0.310), 0.6: (0.247, 0.313, 0.236, 0.269, 0.303),
+               0.7: (0.257, 0.293, 0.227, 0.263, 0.293), "mean": (0.258, 0.310, 0.246, 0.275, 0.303)},
+    "PPO": {0.1: (0.315, 0.482, 0.258, 0.472, 0.625), 0.2: (0.351, 0.381, 0.292, 0.428, 0.421),
+            0.3: (0.218, 0.398, 0.261, 0.349, 0.488), 0.4: (0.180, 0.377, 0.364, 0.476, 0.559),
+            0.5: (0.204, 0.393, 0.391, 0.405, 0.519), 0.6: (0.105, 0.284, 0.214, 0.212, 0.258),
+            0.7: (0.194, 0.271, 0.447, 0.406, 0.625), "mean": (0.237, 0.375, 0.328, 0.402, 0.513)},
+    "PCG-RD": {0.1: (0.266, 0.325, 0.294, 0.283, 0.336), 0.2: (0.284, 0.329, 0.279, 0.316, 0.359),
+               0.3: (0.268, 0.331, 0.264, 0.308, 0.329), 0.4: (0.277, 0.333, 0.287, 0.292, 0.358),
+               0.5: (0.278, 0.328, 0.280, 0.269, 0.326), 0.6: (0.261, 0.317, 0.302, 0.306, 0.385),
+               0.7: (0.262, 0.322, 0.258, 0.305, 0.358), "mean": (0.271, 0.326, 0.281, 0.297, 0.351)},
+}
+DIV_COLS = ("range", "cool_time", "cast_time", "coefficient", "pc1")
+
+
+def paper_summary() -> dict:
+    """The paper's headline numbers: ``mean_error`` and ``pc1_sd`` per method (floats)."""
+    return {"mean_error": {m: v[0] for m, v in PAPER_MEAN_ERROR.items()},
+            "pc1_sd": {m: PAPER_DIVERSITY[m]["mean"][4] for m in PAPER_DIVERSITY}}
+
+
+def _pm(mean: float, sd: float) -> str:
+    return "–" if not np.isfinite(mean) else f"{mean:.3f} ± {sd:.3f}"
+
+
+def _t(t) -> str:
+    return t if isinstance(t, str) else f"{t:.1f}"
+
+
+def _f(x) -> str:
+    return "–" if x is None or not np.isfinite(x) else f"{x:.3f}"
+
+
+def controllability_rows(summ: dict) -> list[dict]:
+    """Rows (method x target, then a ``"mean"`` row per method) of ``pm.controllability`` numbers
+    (episodes with >= 2 edits) beside the paper's. ``summ``: ``summarize`` output."""
+    rows = []
+    for m, s in summ.items():
+        c, paper = s["controllability"], PAPER_CONTROL.get(m, {})
+        for t, v in sorted(c["per_target"].items()):
+            p = paper.get(round(t, 3), (np.nan,) * 4)
+            rows.append({"method": m, "target": round(t, 3), "n": v["n"], "wc_mean": v["wc_mean"], "wc_sd": v["wc_sd"],
+                         "err_mean": v["err_mean"], "err_sd": v["err_sd"], "paper_wc_mean": p[0],
+                         "paper_wc_sd": p[1], "paper_err_mean": p[2], "paper_err_sd": p[3]})
+        p = PAPER_MEAN_ERROR.get(m, (np.nan, np.nan))
+        rows.append({"method": m, "target": "mean", "n": c["n"], "wc_mean": np.nan, "wc_sd": np.nan,
+                     "err_mean": c["err_mean"], "err_sd": c["err_sd"], "paper_wc_mean": np.nan, "paper_wc_sd": np.nan,
+                     "paper_err_mean": p[0], "paper_err_sd": p[1]})
+    return rows
+
+
+def diversity_rows(summ: dict) -> list[dict]:
+    """Rows (method x target, then ``"mean"`` over targets) of the SDs of the min-max-normalised
+    parameters and of PC1 (skills with error < 0.1, normalisation/PCA pooled over all methods),
+    beside the paper's. ``summ``: ``summarize`` output."""
+    rows = []
+    for m, s in summ.items():
+        paper = PAPER_DIVERSITY.get(m, {})
+        per = []
+        for t in pm.TARGETS:
+            d = s["diversity"].get(f"{t:.1f}", {"n": 0, "param_sd": [np.nan] * 4, "pc1_sd": np.nan})
+            vals = list(d["param_sd"]) + [d["pc1_sd"]]
+            per.append(vals)
+            p = paper.get(t, (np.nan,) * 5)
+            rows.append({"method": m, "target": t, "n_kept": d["n"], **dict(zip(DIV_COLS, vals, strict=True)),
+                         **{f"paper_{k}": v for k, v in zip(DIV_COLS, p, strict=True)}})
+        a = np.asarray(per, float)
+        means = [float(np.nanmean(a[:, j])) if np.isfinite(a[:, j]).any() else np.nan for j in range(5)]
+        p = paper.get("mean", (np.nan,) * 5)
+        rows.append({"method": m, "target": "mean", "n_kept": sum(r["n_kept"] for r in rows if r["method"] == m),
+                     **dict(zip(DIV_COLS, means, strict=True)),
+                     **{f"paper_{k}": v for k, v in zip(DIV_COLS, p, strict=True)}})
+    return rows
+
+
+def yield_rows(gens: dict) -> list[dict]:
+    """Per method: episodes, yield rate (generator's measurement reached the ±0.02 band), edits per
+    episode (mean, SD) and episodes with >= 2 edits."""
+    rows = []
+    for m, g in gens.items():
+        y = pm.yield_stats(g)
+        rows.append({"method": m, "episodes": len(g["target"]), "yield": y["yield"], "edits_mean": y["edits_mean"],
+                     "edits_sd": y["edits_sd"], "n_ge2_edits": int((np.asarray(g["edits"]) >= 2).sum())})
+    return rows
+
+
+def _control_md(rows: list[dict]) -> str:
+    body = [[_t(r["target"]), r["method"], r["n"], _pm(r["wc_mean"], r["wc_sd"]),
+             _pm(r["paper_wc_mean"], r["paper_wc_sd"]), _pm(r["err_mean"], r["err_sd"]),
+             _pm(r["paper_err_mean"], r["paper_err_sd"])]
+            for r in sorted(rows, key=lambda r: (r["target"] == "mean", str(r["target"])))]
+    return ("## Controllability (episodes with ≥ 2 edits; final skill measured with the run's eval games)\n\n"
+            + markdown_table(["target", "method", "n", "W_c (ours)", "W_c (paper)", "|W_t − W_c| (ours)",
+                              "|W_t − W_c| (paper)"], body)
+            + "\n\nMean ± SD (ddof 0). The `mean` rows pool all targets; paper means: PCG-HR 0.081, "
+              "PPO 0.248, PCG-RD 0.373.")
+
+
+def _diversity_md(rows: list[dict]) -> str:
+    body = [[_t(r["target"]), r["method"], r["n_kept"]] + [f"{_f(r[k])} ({_f(r['paper_' + k])})" for k in DIV_COLS]
+            for r in sorted(rows, key=lambda r: (r["target"] == "mean", str(r["target"])))]
+    return ("## Diversity: SD of min-max-normalised parameters and of PC1, ours (paper)\n\n"
+            + markdown_table(["target", "method", "n kept", "range", "cool time", "cast time", "coefficient",
+                              "PC1"], body)
+            + "\n\nSkills with |W_t − W_c| < 0.1; normalisation and PCA over the pooled kept skills of all "
+              "methods; `–` where fewer than 2 skills were kept. `mean` rows: mean over targets.")
+
+
+def _yield_md(rows: list[dict]) -> str:
+    body = [[r["method"], r["episodes"], r["n_ge2_edits"], r["yield"], _pm(r["edits_mean"], r["edits_sd"])]
+            for r in rows]
+    return ("## Yield and edits per episode\n\n"
+            + markdown_table(["method", "episodes", "≥ 2 edits", "yield", "edits / episode"], body)
+            + "\n\nYield: share of episodes whose generator measurement reached |W_t − W| ≤ 0.02 "
+              "(the paper reports no yield numbers).")
+
+
+def tsne_figure(gens: dict, seed: int = 0, per_target: int = 300):
+    """t-SNE (scikit-learn) of the generated skills (4 parameters min-max scaled by their bounds),
+    one joint embedding, one panel per method coloured by target. At most ``per_target`` skills
+    per (method, target). Returns ``(figure, n_points)``."""
+    from sklearn.manifold import TSNE
+    from threadpoolctl import threadpool_limits
+
+    rng = np.random.default_rng(seed)
+    xs, ts, ms = [], [], []
+    for m, g in gens.items():
+        for t in np.unique(g["target"]):
+            idx = np.flatnonzero(g["target"] == t)
+            idx = rng.choice(idx, min(per_target, idx.size), replace=False)
+            xs.append(g["skill"][idx])
+            ts += [float(t)] * idx.size
+            ms += [m] * idx.size
+    x = (np.concatenate(xs) - np.asarray(pcg.LOW)) / (np.asarray(pcg.HIGH) - np.asarray(pcg.LOW))
+    ts, ms = np.asarray(ts), np.asarray(ms)
+    perplexity = float(min(30.0, max(1.0, (len(x) - 1) / 3)))
+    with threadpool_limits(1):  # OpenMP threads beside XLA's pool were 20-50x slower on 2 busy cores
+        emb = TSNE(2, perplexity=perplexity, init="pca", random_state=seed).fit_transform(x)
+    fig, axes = plt.subplots(1, len(gens), figsize=(4 * len(gens), 3.8), sharex=True, sharey=True)
+    for ax, m in zip(np.atleast_1d(axes), gens, strict=True):
+        ax.scatter(emb[:, 0], emb[:, 1], s=4, c="0.85")
+        k = ms == m
+        sc = ax.scatter(emb[k, 0], emb[k, 1], s=8, c=ts[k], cmap="viridis", vmin=0.1, vmax=0.7)
+        ax.set_title(m)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.colorbar(sc, ax=axes, label="target win rate", shrink=0.85)
+    fig.suptitle(f"t-SNE of generated skills (perplexity {perplexity:.0f}; grey: all methods)")
+    return fig, len(x)
+
+
+def controllability_figure(rows: list[dict]):
+    """Generated win rate W_c (mean ± SD) against the target per method, the paper's means as hollow
+    markers, and the identity line. ``rows``: ``controllability_rows``. Returns the figure."""
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.plot([0, 0.8], [0, 0.8], "k:", lw=1, label="W_c = W_t")
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    for i, m in enumerate(methods):
+        rs = [r for r in rows if r["method"] == m and r["target"] != "mean"]
+        t = np.asarray([r["target"] for r in rs], float) + (i - 1) * 0.008
+        line = ax.errorbar(t, [r["wc_mean"] for r in rs], [r["wc_sd"] for r in rs], fmt="o-", ms=4, capsize=2,
+                           label=m)
+        ax.plot(t, [r["paper_wc_mean"] for r in rs], "s--", mfc="none", ms=5, lw=0.8,
+                color=line[0].get_color(), label=f"{m} (paper)")
+    ax.set(xlabel="target W_t", ylabel="generated W_c", xlim=(0, 0.8), ylim=(-0.05, 1.05),
+           title="Controllability")
+    ax.legend(fontsize=7, ncol=2)
+    return fig
+
+
+def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300) -> dict:
+    """Write the tables, CSVs and figures of Benchmark 2 into ``run``.
+
+    Args:
+        run: the run folder.
+        gens: ``{method: generate output}`` (``target`` [n], ``skill`` [n, 4], ``win_rate`` [n], ...).
+        seed: t-SNE / subsampling seed.
+        tsne_per_target: at most this many skills per (method, target) in the t-SNE.
+
+    Returns:
+        JSON-able ``mean_error``, ``pc1_sd``, ``yield``, ``edits`` and ``n_controllability`` per
+        method, and ``seconds``.
+    """
+    t0 = time.perf_counter()
+    summ = summarize(gens)
+    crow, drow, yrow = controllability_rows(summ), diversity_rows(summ), yield_rows(gens)
+    run.write_csv("controllability", crow)
+    run.write_csv("diversity", drow)
+    run.write_csv("yield", yrow)
+    run.write_table("controllability", _control_md(crow))
+    run.write_table("diversity", _diversity_md(drow))
+    run.write_table("yield", _yield_md(yrow))
+    run.save_figure("controllability", controllability_figure(crow), dpi=85)
+    fig, n = tsne_figure(gens, seed, tsne_per_target)
+    run.save_figure("tsne", fig, dpi=80)
+    run.log(f"report: t-SNE of {n} skills; mean errors " + ", ".join(
+        f"{m} {s['controllability']['err_mean']:.3f}" for m, s in summ.items()))
+    fin = lambda x: None if x is None or not np.isfinite(x) else float(x)
+    return {"mean_error": {m: fin(s["controllability"]["err_mean"]) for m, s in summ.items()},
+            "pc1_sd": {m: fin(s["pc1_sd_mean"]) for m, s in summ.items()},
+            "yield": {m: s["yield"] for m, s in summ.items()},
+            "edits": {m: s["edits_mean"] for m, s in summ.items()},
+            "n_controllability": {m: s["controllability"]["n"] for m, s in summ.items()},
+            "seconds": time.perf_counter() - t0}

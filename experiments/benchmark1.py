@@ -1,0 +1,275 @@
+"""Benchmark 1 of the RaidEnv paper (SPEC §11): playtesting agents, end to end.
+
+    python -m experiments.benchmark1 --scale {smoke,cpu,paper} --out DIR
+
+Every MA-POCA run of the benchmark trains in **one** vmapped, jitted program: each run is a row
+with its own seed, content and set of skill ranges (``trainers.mapoca.range_table``), so the
+whole benchmark compiles once. The runs (``R`` = seeds, ``Q`` = population size):
+
+- ``table/r{5,9,13,17}`` x R: the win-rate table's MA-POCA, reference content at one range;
+- ``robust/MA-POCA{1..4}`` x R: ranges drawn per episode from {5}, {5,9}, {5,9,13}, {5,9,13,17};
+- ``population/r{3,4,19,20}`` x Q: trained directly on each unseen test range.
+
+The robustness study trains and tests on the *test content* (the reference with cool time 1.0,
+SPEC §11) so that seen and unseen content differ only in the skill range [decide, docs/GAME.md].
+
+Stages (``experiments.runfolder``; rerunning the command resumes): ``train`` (orbax checkpoints
+every few chunks, progress lines with decisions/s and ETA), ``evaluate`` (every run's team and
+PT-HR/PT-RD, ``games`` games per cell, all cells in one vmapped playtest), ``heatmaps``
+(MA-POCA1 vs MA-POCA3 occupancy over ranges), ``report`` (``experiments.b1_report``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import io
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import raidjax
+from experiments.runfolder import RunFolder, atomic_write, fmt_seconds
+from trainers import checkpoint
+from trainers.cli import MetricsLog
+from trainers.config import PRESETS, Config
+from trainers.mapoca import make_trainer, range_table, sample_actions
+
+TABLE_RANGES = (5.0, 9.0, 13.0, 17.0)
+ROBUST_SETS = {"MA-POCA1": (5.0,), "MA-POCA2": (5.0, 9.0), "MA-POCA3": (5.0, 9.0, 13.0),
+               "MA-POCA4": (5.0, 9.0, 13.0, 17.0)}
+TEST_RANGES = (3.0, 4.0, 19.0, 20.0)
+TEST_COOL_TIME = 1.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Scale:
+    """Budgets of one scale. ``trainer`` holds ``trainers.config.Config`` overrides on ``preset``."""
+
+    preset: str
+    total_steps: int  # environment decisions per run
+    seeds: int  # R: runs per table cell and per MA-POCA-k
+    population: int  # Q: population runs per unseen test range
+    games: int  # games per evaluation cell
+    heatmap_games: int
+    heatmap_ranges: tuple[float, ...]
+    checkpoint_chunks: int  # checkpoint every this many chunks
+    trainer: tuple[tuple[str, object], ...] = ()
+
+
+SCALES = {
+    # seconds: a tiny network and two updates; checks the plumbing, not the learning
+    "smoke": Scale("cpu", total_steps=256, seeds=1, population=1, games=8, heatmap_games=4,
+                   heatmap_ranges=(5.0, 13.0), checkpoint_chunks=1,
+                   trainer=(("n_arenas", 16), ("n_steps", 8), ("n_minibatches", 2), ("update_epochs", 1),
+                            ("hidden", 8), ("layers", 1), ("heads", 1), ("updates_per_chunk", 1))),
+    # under an hour on 2 CPU cores: the cpu preset, 2 seeds, populations of 2, 1.5 M decisions per run
+    "cpu": Scale("cpu", total_steps=1_500_000, seeds=2, population=2, games=500, heatmap_games=500,
+                 heatmap_ranges=(5.0, 9.0, 13.0, 17.0), checkpoint_chunks=5),
+    # the paper's budgets: 50 M agent steps (16.7 M decisions) per run, 5 seeds, populations of 5
+    "paper": Scale("paper", total_steps=16_700_000, seeds=5, population=5, games=500, heatmap_games=500,
+                   heatmap_ranges=(5.0, 9.0, 13.0, 17.0), checkpoint_chunks=5),
+}
+
+
+def config_of(scale: Scale) -> Config:
+    """The trainer ``Config`` of a scale."""
+    return PRESETS[scale.preset].replace(total_steps=scale.total_steps, eval_games=0, **dict(scale.trainer))
+
+
+def test_content(skill_range: float = 5.0) -> raidjax.Params:
+    """The robustness study's content: reference content, cool time 1.0, the given range."""
+    return raidjax.with_player_skill(raidjax.make_params(skill_range=skill_range), cool_time=TEST_COOL_TIME)
+
+
+def runs_of(scale: Scale) -> list[dict]:
+    """Every training run: ``name``, ``group``, ``ranges``, ``content`` ("reference"/"test"), ``seed``."""
+    runs = [dict(name=f"table/r{r:g}", group="table", ranges=(r,), content="reference", seed=s)
+            for r in TABLE_RANGES for s in range(scale.seeds)]
+    runs += [dict(name=f"robust/{k}", group="robust", ranges=v, content="test", seed=s)
+             for k, v in ROBUST_SETS.items() for s in range(scale.seeds)]
+    runs += [dict(name=f"population/r{r:g}", group="population", ranges=(r,), content="test", seed=s)
+             for r in TEST_RANGES for s in range(scale.population)]
+    return runs
+
+
+def _stack(trees):
+    return jax.tree.map(lambda *x: jnp.stack(x), *trees)
+
+
+def _run_inputs(runs: list[dict], base_seed: int):
+    keys = jnp.stack([jax.random.fold_in(jax.random.PRNGKey(base_seed), i) for i in range(len(runs))])
+    contents = _stack([raidjax.make_params() if r["content"] == "reference" else test_content() for r in runs])
+    tables = jnp.stack([range_table(r["ranges"]) for r in runs])
+    return keys, contents, tables
+
+
+class Interrupted(Exception):
+    """Training stopped early on purpose (``--max-chunks``); rerunning the command resumes."""
+
+
+def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chunks: int | None = None) -> dict:
+    """Train every run together (resuming from the last checkpoint); returns timing figures.
+
+    ``max_chunks`` stops after that many chunks of this invocation (simulates an interruption)."""
+    cfg = config_of(scale)
+    trainer = make_trainer(cfg, redraw_ranges=True)
+    inputs = _run_inputs(runs, base_seed)
+    init = jax.jit(jax.vmap(trainer.init))
+    ckpt = rf.path("checkpoints", "mapoca")
+    t0 = time.perf_counter()
+    if checkpoint.latest_step(ckpt) is not None:
+        runner, _, meta = checkpoint.restore(ckpt, jax.eval_shape(init, *inputs))
+        start, seconds_before = meta["chunk"], meta["seconds"]
+        rf.log(f"train: resumed at chunk {start}/{cfg.num_chunks}")
+    else:
+        runner, start, seconds_before = init(*inputs), 0, 0.0
+    chunk = jax.jit(jax.vmap(trainer.chunk), donate_argnums=0).lower(runner).compile()
+    compile_s = time.perf_counter() - t0
+    per_chunk = cfg.updates_per_chunk * cfg.decisions_per_update
+    rf.log(f"train: {len(runs)} runs x {cfg.num_chunks} chunks x {per_chunk} decisions, compiled in {compile_s:.1f}s")
+    log = MetricsLog(rf.path("train", "metrics.jsonl").parent, keep_chunks=start)
+    t_loop, done_here = time.perf_counter(), 0
+    for c in range(start, cfg.num_chunks):
+        if max_chunks is not None and c - start >= max_chunks:
+            raise Interrupted(f"stopped after chunk {c}/{cfg.num_chunks} (--max-chunks); rerun to resume")
+        runner, m = chunk(runner)
+        m = jax.device_get(m)
+        done_here += 1
+        el = time.perf_counter() - t_loop
+        rate = done_here * per_chunk * len(runs) / el
+        win = m["wins"] / np.maximum(m["episodes"], 1)
+        row = {"chunk": c, "env_steps": (c + 1) * per_chunk, "seconds": seconds_before + el, "steps_per_s": rate}
+        row.update({f"win/{r['name']}/{r['seed']}": float(w) for r, w in zip(runs, win, strict=True)})
+        log.write(row)
+        groups = {g: float(np.mean([w for r, w in zip(runs, win, strict=True) if r["group"] == g]))
+                  for g in ("table", "robust", "population")}
+        rf.log(f"train [{c + 1}/{cfg.num_chunks}] {(c + 1) * per_chunk / 1e6:.2f}M decisions/run  {rate:,.0f} "
+               f"decisions/s  ETA {fmt_seconds((cfg.num_chunks - c - 1) * el / done_here)}  training win "
+               + "  ".join(f"{g} {w:.2f}" for g, w in groups.items()))
+        if (c + 1) % scale.checkpoint_chunks == 0 or c + 1 == cfg.num_chunks:
+            checkpoint.save(ckpt, runner, cfg, {"chunk": c + 1, "update": (c + 1) * cfg.updates_per_chunk,
+                                                "env_steps": (c + 1) * per_chunk, "seconds": seconds_before + el})
+    train_s = seconds_before + time.perf_counter() - t_loop
+    return {"runs": len(runs), "decisions_per_run": cfg.num_chunks * per_chunk, "compile_seconds": compile_s,
+            "train_seconds": train_s, "decisions_per_s": cfg.num_chunks * per_chunk * len(runs) / max(train_s, 1e-9)}
+
+
+def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int):
+    """``(actor module, actor weights with a leading run axis)`` from the last checkpoint."""
+    cfg = config_of(scale)
+    trainer = make_trainer(cfg, redraw_ranges=True)
+    abstract = jax.eval_shape(jax.vmap(trainer.init), *_run_inputs(runs, base_seed))
+    runner, _, _ = checkpoint.restore(rf.path("checkpoints", "mapoca"), abstract)
+    return trainer.actor, runner.params["actor"]
+
+
+def team_outcomes(key, actor, weights, contents, n_games: int) -> jax.Array:
+    """Outcomes ``int32[C, n_games]`` of C (team, content) cells, one vmapped playtest.
+
+    Args:
+        key: PRNG key (one stream per cell is folded from it).
+        actor: the actor module; weights: its parameters with a leading axis C.
+        contents: ``Params`` with a leading axis C.
+        n_games: games per cell.
+    """
+
+    def one(k, w, content):
+        def policy(kk, obs, state, params):
+            return sample_actions(kk, actor.apply(w, obs), obs.alive)[0]
+
+        return raidjax.playtest(k, content, policy, n_games)["outcome"]
+
+    keys = jax.random.split(key, jax.tree.leaves(contents)[0].shape[0])
+    return jax.jit(jax.vmap(one))(keys, weights, contents)
+
+
+def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> dict:
+    """Win rates of every cell; returns ``{"cells": [...]}`` (one dict per cell)."""
+    actor, weights = load_actors(rf, scale, runs, base_seed)
+    cells = []  # (run index or policy name, content kind, range, eval seed)
+    for i, r in enumerate(runs):
+        if r["group"] == "robust":
+            cells += [(i, "test", t, r["seed"]) for t in TEST_RANGES]
+        else:
+            cells.append((i, r["content"], r["ranges"][0], r["seed"]))
+    content_of = lambda kind, rng: (raidjax.make_params(skill_range=rng) if kind == "reference" else test_content(rng))
+    contents = _stack([content_of(k, rg) for _, k, rg, _ in cells])
+    w = jax.tree.map(lambda x: x[jnp.asarray([c[0] for c in cells])], weights)
+    t = time.perf_counter()
+    out = np.asarray(team_outcomes(jax.random.PRNGKey(base_seed + 777), actor, w, contents, scale.games))
+    rf.log(f"evaluate: {len(cells)} team cells x {scale.games} games in {time.perf_counter() - t:.0f}s")
+    rows = [{"agent": runs[i]["name"].split("/")[1] if runs[i]["group"] == "robust" else "MA-POCA",
+             "group": runs[i]["group"], "run": runs[i]["name"], "seed": s, "content": kind, "range": rg,
+             "win_rate": float(np.mean(o == 1)), "draw_rate": float(np.mean(o == 3)), "games": scale.games}
+            for (i, kind, rg, s), o in zip(cells, out, strict=True)]
+    # scripted agents: every (content, range) cell, `seeds` independent batches of games
+    pt_cells = [("reference", r) for r in TABLE_RANGES] + [("test", r) for r in TEST_RANGES]
+    for name, pol in (("PT-HR", raidjax.policies.heuristic), ("PT-RD", raidjax.policies.random)):
+        pt_key = jax.random.PRNGKey(base_seed + (999 if name == "PT-HR" else 998))
+        for j, (kind, rg) in enumerate(pt_cells):
+            for s in range(scale.seeds):
+                key = jax.random.fold_in(pt_key, 1000 * j + s)
+                o = np.asarray(raidjax.playtest(key, content_of(kind, rg), pol, scale.games)["outcome"])
+                rows.append({"agent": name, "group": "scripted", "run": name, "seed": s, "content": kind,
+                             "range": rg, "win_rate": float(np.mean(o == 1)), "draw_rate": float(np.mean(o == 3)),
+                             "games": scale.games})
+    rf.write_csv("win_rates", rows)
+    return {"cells": rows}
+
+
+def heatmaps(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> dict:
+    """Occupancy maps of MA-POCA1 and MA-POCA3 (seed 0) over ``heatmap_ranges`` (test content);
+    saved as ``heatmaps.npz`` (``[agent, range, player, 24, 24]``)."""
+    actor, weights = load_actors(rf, scale, runs, base_seed)
+    agents = ("MA-POCA1", "MA-POCA3")
+    idx = [next(i for i, r in enumerate(runs) if r["name"] == f"robust/{a}" and r["seed"] == 0) for a in agents]
+    grid = [(i, rg) for i in idx for rg in scale.heatmap_ranges]
+    contents = _stack([test_content(rg) for _, rg in grid])
+    w = jax.tree.map(lambda x: x[jnp.asarray([g[0] for g in grid])], weights)
+
+    def one(k, w, content):
+        def policy(kk, obs, state, params):
+            return sample_actions(kk, actor.apply(w, obs), obs.alive)[0]
+
+        return raidjax.playtest_occupancy(k, content, policy, scale.heatmap_games)
+
+    keys = jax.random.split(jax.random.PRNGKey(base_seed + 555), len(grid))
+    maps = np.asarray(jax.jit(jax.vmap(one))(keys, w, contents))
+    maps = maps.reshape(len(agents), len(scale.heatmap_ranges), *maps.shape[1:])
+    buf = io.BytesIO()
+    np.savez(buf, maps=maps, agents=np.asarray(agents), ranges=np.asarray(scale.heatmap_ranges))
+    atomic_write(rf.path("heatmaps.npz"), buf.getvalue())
+    return {"agents": list(agents), "ranges": list(scale.heatmap_ranges), "games": scale.heatmap_games}
+
+
+def main(argv=None) -> dict:
+    """Run (or resume) Benchmark 1; returns the summary (also the last stdout line)."""
+    ap = argparse.ArgumentParser(prog="python -m experiments.benchmark1", description=__doc__.split("\n")[0])
+    ap.add_argument("--scale", choices=sorted(SCALES), default="smoke")
+    ap.add_argument("--out", required=True, help="run folder (rerun the same command to resume)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--max-chunks", type=int, help="stop training after this many chunks (tests resuming)")
+    args = ap.parse_args(argv)
+    scale = SCALES[args.scale]
+    runs = runs_of(scale)
+    rf = RunFolder(args.out, {"benchmark": 1, "scale": args.scale, "seed": args.seed,
+                              "budgets": dataclasses.asdict(scale), "trainer": config_of(scale).to_dict(),
+                              "runs": runs})
+    from experiments import b1_report
+
+    try:
+        timing = rf.stage("train", lambda: train(rf, scale, runs, args.seed, args.max_chunks))
+    except Interrupted as e:
+        rf.log(str(e))
+        return {"interrupted": True}
+    ev = rf.stage("evaluate", lambda: evaluate(rf, scale, runs, args.seed))
+    rf.stage("heatmaps", lambda: heatmaps(rf, scale, runs, args.seed))
+    summary = rf.stage("report", lambda: b1_report.report(rf, ev["cells"], timing))
+    return rf.finish({"benchmark": 1, "scale": args.scale, **summary, "train": timing})
+
+
+if __name__ == "__main__":
+    main()

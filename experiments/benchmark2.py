@@ -1,0 +1,298 @@
+"""Benchmark 2 of the RaidEnv paper (SPEC §10–§11): controllable skill generation, as one
+resumable command::
+
+    python -m experiments.benchmark2 --scale {smoke,cpu,paper} --out DIR [--seed N]
+
+Stages (each a ``RunFolder.stage``; rerunning the same command resumes after the last finished
+one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
+
+1. ``train``: PPO-PCGRL (``trainers.ppo_pcgrl``) in jitted chunks, orbax checkpoints in
+   ``DIR/checkpoints/ppo``, per-update metrics in ``csv/ppo_train.csv``, progress in ``log.txt``.
+2. ``generate``: the trained PPO, PCG-HR and PCG-RD generators run ``episodes`` episodes per target
+   (0.1..0.7); each final skill is measured with ``eval_games`` (300) PT-HR games. The episodes
+   are generated in ``parts`` (each saved, so an interruption loses at most one part);
+   the result is ``generated.npz`` and ``csv/generated.csv``.
+3. ``report``: controllability / diversity / yield tables beside the paper's numbers, the t-SNE
+   and controllability figures (``experiments.b2_report``).
+
+The last stdout line is the JSON summary (also ``summary.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import io
+import time
+import types
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from experiments.runfolder import RunFolder, atomic_write, fmt_seconds
+from raidjax import pcg
+from raidjax import pcg_metrics as pm
+from trainers.ppo_pcgrl import Config, get_config, make_train
+from trainers.ppo_pcgrl_cli import _groups, evaluate, metric_rows
+
+METHODS = ("PPO", "PCG-HR", "PCG-RD")
+FIELDS = ("target", "skill", "win_rate", "gen_win_rate", "edits", "reached")
+
+
+@dataclasses.dataclass(frozen=True)
+class Scale:
+    """Budgets of one scale.
+
+    Attributes:
+        preset: ``trainers.ppo_pcgrl.PRESETS`` key; ``ppo`` holds overrides of its fields.
+        seeds: PPO training seeds (per fixed target when the preset does not observe the target).
+        chunk: PPO updates per jitted chunk (progress / checkpoint period).
+        episodes: generation episodes per target and method (PPO: split evenly over seeds).
+        parts: generation is done in this many saved parts (``episodes`` divisible by it).
+        gen_games: PT-HR games per generator measurement during generation.
+        eval_games: PT-HR games measuring each final skill (300 in the SPEC).
+        greedy: argmax PPO actions in generation (else sampled).
+        tsne_per_target: at most this many skills per (method, target) in the t-SNE figure.
+        fast_compile: compile the PPO learner with XLA backend optimisation level 0 (compiles
+            ~3x faster, runs slower: for the smoke test; generation keeps the defaults, where
+            level 0 ran ~8x slower and saved nothing).
+    """
+
+    preset: str
+    ppo: dict
+    seeds: int
+    chunk: int
+    episodes: int
+    parts: int
+    gen_games: int
+    eval_games: int
+    greedy: bool = False
+    tsne_per_target: int = 300
+    fast_compile: bool = False
+
+    @property
+    def compiler_options(self) -> dict | None:
+        """XLA compiler options of this scale's compiles (``None``: the defaults)."""
+        return {"xla_backend_optimization_level": 0} if self.fast_compile else None
+
+
+SCALES = {
+    # Seconds: a tiny learner and a few games per measurement (used by the tests).
+    "smoke": Scale(preset="cpu", ppo=dict(n_envs=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2,
+                                          hidden=(16, 16), n_games=8, max_edits=6),
+                   seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=16, fast_compile=True),
+    # ~20 min on 2 shared CPU cores: the cpu preset (one model for all targets, target observed; N = 50
+    # games per training measurement, 20 480 steps as in docs/RESULTS.md), 12 episodes per target and
+    # method with 100-game generator measurements and the SPEC's 300-game final measurement.
+    "cpu": Scale(preset="cpu", ppo=dict(total_steps=20480), seeds=1, chunk=5, episodes=12, parts=6,
+                 gen_games=100, eval_games=300),
+    # The paper's budgets: one model per fixed (unobserved) target, 5 seeds, 20 000 steps, N = 100
+    # in training and 300 in evaluation, 1 000 skills per target and method (paper §5.3).
+    "paper": Scale(preset="paper", ppo={}, seeds=5, chunk=2, episodes=1000, parts=10, gen_games=300,
+                   eval_games=300),
+}
+
+
+def ppo_config(scale: Scale) -> Config:
+    """The PPO ``Config`` of a scale (its preset with the scale's overrides)."""
+    return get_config(scale.preset, **scale.ppo)
+
+
+def _parse(argv=None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description="Benchmark 2 (content generation) of the RaidEnv paper")
+    ap.add_argument("--scale", choices=sorted(SCALES), default="cpu")
+    ap.add_argument("--out", required=True, help="run folder (rerun the same command to resume)")
+    ap.add_argument("--seed", type=int, default=0)
+    return ap.parse_args(argv)
+
+
+class _Learner:
+    """The PPO learner of a run: groups, jitted init/chunk, the checkpoint manager."""
+
+    def __init__(self, run: RunFolder, scale: Scale, seed: int):
+        import orbax.checkpoint as ocp
+
+        self.config = ppo_config(scale)
+        self.train = make_train(self.config)
+        pairs, self.labels = _groups(self.config, scale.seeds)
+        self.G = len(self.labels)
+        self.keys = jax.random.split(jax.random.key(seed), self.G)
+        self.tg = jnp.asarray(pairs)
+        self.init = jax.jit(jax.vmap(self.train.init), compiler_options=scale.compiler_options)
+        self.steps_per_update = self.config.n_envs * self.config.n_steps
+        self.ocp = ocp
+        self.mgr = ocp.CheckpointManager(
+            (run.out / "checkpoints" / "ppo").absolute(),
+            options=ocp.CheckpointManagerOptions(max_to_keep=2, enable_async_checkpointing=False))
+
+    def restore(self, step: int | None = None):
+        """The runner of checkpoint ``step`` (default: latest), or ``None`` without checkpoints."""
+        step = self.mgr.latest_step() if step is None else step
+        if step is None:
+            return None
+        abstract = jax.eval_shape(self.init, self.keys, self.tg)
+        return self.mgr.restore(step, args=self.ocp.args.StandardRestore(abstract))
+
+
+def _read_train_csv(path, upto: int) -> list[dict]:
+    """Rows of ``csv/ppo_train.csv`` with ``update <= upto`` (numbers as floats/ints)."""
+    if not path.exists():
+        return []
+    rows = []
+    for r in csv.DictReader(io.StringIO(path.read_text())):
+        r = {k: (int(v) if k in ("update", "env_steps") else float(v)) for k, v in r.items()}
+        if r["update"] <= upto:
+            rows.append(r)
+    return rows
+
+
+def stage_train(run: RunFolder, scale: Scale, seed: int) -> dict:
+    """Train PPO with checkpoints; resume from the latest one. Returns ``train_seconds`` (cumulative
+    over resumes), ``steps`` (generator steps per group), ``groups``, ``updates``, ``seconds``."""
+    t_start = time.perf_counter()  # wall clock of this invocation (compiles included)
+    lr = _Learner(run, scale, seed)
+    total = lr.config.n_updates
+    run.log(f"train: preset {scale.preset}, {lr.G} group(s), {total} updates x {lr.steps_per_update} steps, "
+            f"N = {lr.config.n_games} games per measurement")
+    runner = lr.restore()
+    start = 0 if runner is None else int(np.asarray(runner["update"]).reshape(-1)[0])
+    if runner is None:
+        runner = lr.init(lr.keys, lr.tg)
+        run.log(f"train: initialised (compile included) in {fmt_seconds(time.perf_counter() - t_start)}")
+    else:
+        run.log(f"train: resumed from checkpoint at update {start}/{total}")
+    rows = _read_train_csv(run.out / "csv" / "ppo_train.csv", start)
+    wall0 = rows[-1]["wall_s"] if rows else 0.0
+
+    def chunk_fn(runner, tg, n):
+        def one(r, t):
+            return jax.lax.scan(lambda rr, _: lr.train.update(rr, t), r, None, n)
+        return jax.vmap(one)(runner, tg)
+
+    compiled = {}
+    t_rate = time.perf_counter()  # steps-per-second clock (compiles excluded)
+    steps_done, u = 0, start
+    while u < total:
+        n = min(scale.chunk, total - u)
+        if n not in compiled:
+            t = time.perf_counter()
+            compiled[n] = jax.jit(chunk_fn, static_argnums=2).lower(runner, lr.tg, n).compile(
+                scale.compiler_options)
+            run.log(f"train: compiled a {n}-update chunk in {fmt_seconds(time.perf_counter() - t)}")
+            t_rate += time.perf_counter() - t
+        t0 = time.perf_counter()
+        runner, metrics = compiled[n](runner, lr.tg)
+        jax.block_until_ready(runner)
+        dt = time.perf_counter() - t0
+        u += n
+        steps_done += n * lr.steps_per_update * lr.G
+        wall = wall0 + time.perf_counter() - t_start
+        new = metric_rows(u - n, metrics, lr.steps_per_update)
+        rows += [{**{k: v for k, v in r.items() if k != "final_error_per_group"}, "wall_s": wall} for r in new]
+        run.write_csv("ppo_train", rows)  # before the checkpoint: a resume drops rows past it, never leaves gaps
+        lr.mgr.save(u, args=lr.ocp.args.StandardSave(runner))
+        rate = steps_done / max(time.perf_counter() - t_rate, 1e-9)
+        eta = (total - u) * lr.steps_per_update * lr.G / max(rate, 1e-9)
+        last = rows[-1]
+        run.log(f"train: update {u}/{total} steps {u * lr.steps_per_update} steps/s {rate:.1f} chunk {dt:.1f}s "
+                f"ETA {fmt_seconds(eta)} reward {last['reward']:.2f} final_err {last['final_error']:.3f} "
+                f"edits {last['edits']:.1f} entropy {last['entropy']:.2f}")
+    lr.mgr.wait_until_finished()
+    train_s = rows[-1]["wall_s"] if rows else 0.0
+    return {"train_seconds": train_s, "steps": total * lr.steps_per_update, "groups": lr.G, "updates": total,
+            "n_games": lr.config.n_games, "seconds": train_s}
+
+
+def save_generated(path, gens: dict) -> None:
+    """Write ``{method: generate output}`` atomically as an ``.npz`` with keys ``"<method>/<field>"``."""
+    buf = io.BytesIO()
+    np.savez(buf, **{f"{m}/{k}": v for m, g in gens.items() for k, v in g.items()})
+    atomic_write(path, buf.getvalue())
+
+
+def load_generated(path) -> dict[str, dict[str, np.ndarray]]:
+    """Read ``save_generated``'s file: ``{method: {"target" [n], "skill" [n, 4], "win_rate" [n],
+    "gen_win_rate" [n], "edits" [n], "reached" [n]}}`` (methods in file order)."""
+    out: dict[str, dict[str, np.ndarray]] = {}
+    with np.load(path) as z:
+        for key in z.files:
+            m, k = key.split("/", 1)
+            out.setdefault(m, {})[k] = z[key]
+    return out
+
+
+def generated_rows(gens: dict) -> list[dict]:
+    """One CSV row per episode: method, target, the 4 skill parameters, win_rate, gen_win_rate,
+    edits, reached."""
+    rows = []
+    for m, g in gens.items():
+        for i in range(len(g["target"])):
+            rows.append({"method": m, "target": round(float(g["target"][i]), 6),
+                         **{p: float(g["skill"][i, j]) for j, p in enumerate(pcg.PARAM_NAMES)},
+                         "win_rate": float(g["win_rate"][i]), "gen_win_rate": float(g["gen_win_rate"][i]),
+                         "edits": int(g["edits"][i]), "reached": int(bool(g["reached"][i]))})
+    return rows
+
+
+def stage_generate(run: RunFolder, scale: Scale, seed: int) -> dict:
+    """Generate with PPO (weights from the final checkpoint), PCG-HR and PCG-RD, in saved parts.
+    Returns ``episodes`` per method, ``parts`` and ``seconds``."""
+    lr = _Learner(run, scale, seed)
+    total = lr.config.n_updates
+    if lr.mgr.latest_step() != total:
+        raise RuntimeError(f"no final PPO checkpoint (update {total}) in {run.out / 'checkpoints' / 'ppo'}")
+    params = lr.restore(total)["params"]
+    per_part = scale.episodes // scale.parts
+    args = types.SimpleNamespace(eval_gen_games=scale.gen_games, greedy=scale.greedy, eval_episodes=per_part,
+                                 eval_games=scale.eval_games, no_baselines=False)
+    t0, done_here, parts = time.perf_counter(), 0, []
+    for i in range(scale.parts):
+        path = run.path("gen_parts", f"part_{i:03d}.npz")
+        if not path.exists():
+            t = time.perf_counter()
+            gens = evaluate(jax.random.fold_in(jax.random.key(seed + 1), i), lr.config, params, lr.labels, args)
+            save_generated(path, gens)
+            done_here += 1
+            eta = (time.perf_counter() - t0) / done_here * (scale.parts - i - 1)
+            run.log(f"generate: part {i + 1}/{scale.parts} ({per_part} episodes per target and method) in "
+                    f"{fmt_seconds(time.perf_counter() - t)}, ETA {fmt_seconds(eta)}")
+        parts.append(load_generated(path))
+    gens = {m: {k: np.concatenate([p[m][k] for p in parts]) for k in FIELDS} for m in METHODS}
+    save_generated(run.out / "generated.npz", gens)
+    run.write_csv("generated", generated_rows(gens))
+    errs = {m: float(np.mean(np.abs(g["target"] - g["win_rate"]))) for m, g in gens.items()}
+    run.log("generate: mean |W_t - W_c| (all episodes) " + ", ".join(f"{m} {e:.3f}" for m, e in errs.items()))
+    return {"episodes": {m: int(len(g["target"])) for m, g in gens.items()}, "parts": scale.parts,
+            "seconds": time.perf_counter() - t0}
+
+
+def main(argv=None) -> dict:
+    """Run (or resume) Benchmark 2 at one scale. Returns the summary dict (also the last stdout line)."""
+    from experiments import b2_report
+
+    a = _parse(argv)
+    scale = SCALES[a.scale]
+    if scale.episodes % scale.parts or (scale.episodes // scale.parts) % scale.seeds:
+        raise ValueError("episodes must split evenly into parts and, per part, over the PPO seeds")
+    config = {"benchmark": 2, "scale": a.scale, "seed": a.seed, **dataclasses.asdict(scale),
+              "ppo_config": dataclasses.asdict(ppo_config(scale)), "targets": list(pm.TARGETS)}
+    run = RunFolder(a.out, config)
+    tr = run.stage("train", lambda: stage_train(run, scale, a.seed))
+    ge = run.stage("generate", lambda: stage_generate(run, scale, a.seed))
+    rep = run.stage("report", lambda: b2_report.report(run, load_generated(run.out / "generated.npz"),
+                                                          seed=a.seed, tsne_per_target=scale.tsne_per_target))
+    summary = {"benchmark": 2, "scale": a.scale, "seed": a.seed,
+               **{k: rep[k] for k in ("mean_error", "pc1_sd", "yield", "edits", "n_controllability")},
+               "paper": b2_report.paper_summary(),
+               "train_steps": tr["steps"], "train_groups": tr["groups"], "episodes": ge["episodes"],
+               "stage_seconds": {"train": tr["seconds"], "generate": ge["seconds"], "report": rep["seconds"]}}
+    return run.finish(summary)
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except ValueError as e:
+        raise SystemExit(f"error: {e}") from e

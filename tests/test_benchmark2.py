@@ -1,0 +1,119 @@
+"""``experiments.benchmark2`` at the smoke scale: files, numbers recomputed from the raw
+generated skills, resume (whole stages and the PPO checkpoint) and the scale guard."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from experiments import benchmark2 as b2
+from raidjax import pcg_metrics as pm
+
+
+def _csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_paper_scale_is_wired_to_the_paper_budgets():
+    s = b2.SCALES["paper"]
+    cfg = b2.ppo_config(s)
+    assert (cfg.total_steps, cfg.n_games, cfg.observe_target, s.seeds, s.eval_games, s.gen_games) == (
+        20_000, 100, False, 5, 300, 300)
+    assert b2.SCALES["cpu"].eval_games == 300
+    for sc in b2.SCALES.values():  # episodes split evenly into parts and over the PPO seeds
+        assert sc.episodes % sc.parts == 0 and (sc.episodes // sc.parts) % sc.seeds == 0
+
+
+def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
+    out = tmp_path / "b2"
+    summary = b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3"])
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert json.loads(last)["mean_error"] == summary["mean_error"]
+
+    for f in ["config.json", "log.txt", "summary.json", "generated.npz", "tables/controllability.md",
+              "tables/diversity.md", "tables/yield.md", "csv/controllability.csv", "csv/diversity.csv",
+              "csv/yield.csv", "csv/generated.csv", "csv/ppo_train.csv", "stages/train.json",
+              "stages/generate.json", "stages/report.json"]:
+        assert (out / f).is_file(), f
+    assert json.loads((out / "config.json").read_text())["scale"] == "smoke"
+    for fig in ["tsne", "controllability"]:
+        with Image.open(out / "figures" / f"{fig}.png") as im:
+            im.load()
+            assert im.size[0] > 100 and im.size[1] > 100
+        assert (out / "figures" / f"{fig}.png").stat().st_size < 500_000
+    saved = json.loads((out / "summary.json").read_text())
+    assert set(saved["mean_error"]) == set(b2.METHODS)
+    assert all(math.isfinite(v) for v in saved["mean_error"].values())
+    assert saved["paper"]["mean_error"] == {"PCG-HR": 0.081, "PPO": 0.248, "PCG-RD": 0.373}
+
+    # Training metrics: one row per update.
+    cfg = b2.ppo_config(b2.SCALES["smoke"])
+    train_rows = _csv(out / "csv" / "ppo_train.csv")
+    assert [int(r["update"]) for r in train_rows] == list(range(1, cfg.n_updates + 1))
+
+    # Raw generations: E episodes per target and method, one CSV row each.
+    gens = b2.load_generated(out / "generated.npz")
+    E = b2.SCALES["smoke"].episodes
+    assert list(gens) == list(b2.METHODS)
+    for g in gens.values():
+        assert g["skill"].shape == (E * len(pm.TARGETS), 4)
+    assert len(_csv(out / "csv" / "generated.csv")) == E * len(pm.TARGETS) * len(b2.METHODS)
+
+    # Controllability CSV == pcg_metrics.controllability recomputed from generated.npz.
+    rows = _csv(out / "csv" / "controllability.csv")
+    for m, g in gens.items():
+        c = pm.controllability(g)
+        mine = {r["target"]: r for r in rows if r["method"] == m}
+        assert float(mine["mean"]["err_mean"]) == pytest.approx(c["err_mean"], abs=1e-9)
+        assert int(mine["mean"]["n"]) == c["n"]
+        assert saved["mean_error"][m] == pytest.approx(c["err_mean"], abs=1e-9)
+        for t, v in c["per_target"].items():
+            r = mine[str(round(t, 3))]
+            assert int(r["n"]) == v["n"]
+            for k in ("wc_mean", "wc_sd", "err_mean", "err_sd"):
+                assert float(r[k]) == pytest.approx(v[k], abs=1e-9)
+        assert float(mine["0.1"]["paper_err_mean"]) == pytest.approx(
+            {"PCG-HR": 0.044, "PPO": 0.156, "PCG-RD": 0.335}[m])
+
+    # A second invocation resumes: every stage skipped, fast.
+    n_log = len((out / "log.txt").read_text().splitlines())
+    t = time.perf_counter()
+    again = b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3"])
+    assert time.perf_counter() - t < 20
+    new_log = (out / "log.txt").read_text().splitlines()[n_log:]
+    assert sum("already done" in line for line in new_log) == 3
+    assert again["mean_error"] == summary["mean_error"]
+
+    # An interruption mid-training (the last checkpoint and the stage record lost): training resumes
+    # from the previous checkpoint, redoes only the last update, bit-identically.
+    import shutil
+
+    import jax
+
+    ckpt = out / "checkpoints" / "ppo"
+    learner = b2._Learner(b2.RunFolder(out, json.loads((out / "config.json").read_text())), b2.SCALES["smoke"], 3)
+    final = learner.restore(cfg.n_updates)
+    shutil.rmtree(ckpt / str(cfg.n_updates))
+    (out / "stages" / "train.json").unlink()
+    b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3"])
+    log = (out / "log.txt").read_text()
+    assert f"resumed from checkpoint at update {cfg.n_updates - 1}/{cfg.n_updates}" in log
+    assert [int(r["update"]) for r in _csv(out / "csv" / "ppo_train.csv")] == list(range(1, cfg.n_updates + 1))
+    again = learner.restore(cfg.n_updates)
+    for x, y in zip(jax.tree.leaves(final), jax.tree.leaves(again), strict=True):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+
+    # Other settings into the same folder: a clear error.
+    with pytest.raises(ValueError, match="other settings"):
+        b2.main(["--scale", "cpu", "--out", str(out)])
+    with pytest.raises(ValueError, match="seed"):
+        b2.main(["--scale", "smoke", "--out", str(out), "--seed", "4"])
+    np.testing.assert_array_equal(b2.load_generated(out / "generated.npz")["PPO"]["win_rate"],
+                                  gens["PPO"]["win_rate"])

@@ -10,8 +10,8 @@ import jax.numpy as jnp
 
 from raidjax.env import reset, step
 from raidjax.logs import HEATMAP_BINS, episode_summary
-from raidjax.observation import observe
 from raidjax.movement import HALF_ARENA
+from raidjax.observation import observe
 from raidjax.types import RUNNING, Params
 
 Policy = Callable  # policy(key, obs, state, params) -> int32[P]

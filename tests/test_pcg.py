@@ -163,3 +163,32 @@ def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path):
     obs = pcg.observe(_state(), pcg.make_params(n_games=2))
     a = policy(back["params"], jax.random.key(1), obs, None, None)
     assert a.shape == (4,) and a.dtype == jnp.int32
+
+
+_VMAPPED_LEARNERS = """
+import jax, jax.numpy as jnp
+from trainers.ppo_pcgrl import get_config, make_train
+cfg = get_config("paper", n_games=4, hidden=(64, 64))  # smaller configs did not deadlock
+train = make_train(cfg)
+t = jnp.asarray([[0.3, 0.3], [0.5, 0.5]])
+r = jax.jit(jax.vmap(train.init))(jax.random.split(jax.random.key(0), 2), t)
+one = lambda r, t: jax.lax.scan(lambda rr, _: train.update(rr, t), r, None, 1)
+r, m = jax.jit(jax.vmap(one))(r, t)
+jax.block_until_ready(r)
+print("finished")
+"""
+
+
+def test_vmapped_learners_do_not_deadlock_xla_cpu():
+    """Two vmapped PPO-PCGRL learners (a scan of playtest while-loops) used to deadlock in
+    XLA:CPU's concurrency-optimised scheduler; raidjax switches it off at import. Run in a
+    subprocess so that a regression fails on the timeout instead of hanging the suite."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "RAIDJAX_KEEP_XLA_FLAGS"}
+    env["PYTHONPATH"] = os.pathsep.join([os.getcwd(), env.get("PYTHONPATH", "")])
+    out = subprocess.run([sys.executable, "-c", "import raidjax\n" + _VMAPPED_LEARNERS], env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0 and "finished" in out.stdout, out.stderr[-2000:]

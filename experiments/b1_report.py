@@ -1,7 +1,8 @@
 """Tables and figures of Benchmark 1 from its evaluation cells (``experiments.benchmark1``).
 
 Writes ``tables/win_rate.md``, ``tables/robustness.md``, ``csv/win_rate_table.csv``,
-``csv/robustness.csv``, ``figures/adjusted_score.png`` and ``figures/heatmaps.png``; each table
+``csv/robustness.csv``, ``figures/adjusted_score.png``, ``figures/heatmaps.png`` and
+``figures/training.png`` (training win rates, mean and range over seeds); each table
 puts our numbers beside the paper's.
 """
 
@@ -122,9 +123,36 @@ def heatmap_figure(rf: RunFolder) -> None:
     rf.save_figure("heatmaps", fig)
 
 
+def training_figure(rf: RunFolder) -> None:
+    """Training win rate (share of episodes won per chunk) of every run, one panel per group,
+    from ``train/metrics.csv``."""
+    import csv
+
+    with open(rf.path("train", "metrics.csv")) as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        return
+    x = np.asarray([float(r["env_steps"]) for r in rows]) / 1e6
+    runs = sorted({k.split("/", 1)[1].rsplit("/", 1)[0] for k in rows[0] if k.startswith("win/")})
+    groups = ("table", "robust", "population")
+    fig, axes = plt.subplots(1, 3, figsize=(10, 2.8), sharey=True)
+    for ax, g in zip(axes, groups, strict=True):
+        for run in (r for r in runs if r.startswith(g + "/")):
+            cols = [k for k in rows[0] if k.startswith(f"win/{run}/")]
+            y = np.asarray([[float(r[c]) for c in cols] for r in rows])
+            line, = ax.plot(x, y.mean(1), label=run.split("/")[1])
+            ax.fill_between(x, y.min(1), y.max(1), color=line.get_color(), alpha=0.2)
+        ax.set_title(g, fontsize=9)
+        ax.set_xlabel("decisions per run (M)")
+        ax.legend(fontsize=7)
+    axes[0].set_ylabel("training win rate")
+    rf.save_figure("training", fig)
+
+
 def report(rf: RunFolder, cells: list[dict], timing: dict) -> dict:
     """Write every table and figure; returns the summary numbers."""
     means = win_rate_table(rf, cells)
     rob = robustness(rf, cells)
     heatmap_figure(rf)
+    training_figure(rf)
     return {"win_rate": means, **rob}

@@ -5,6 +5,7 @@ Layout of ``DIR``::
     config.json     the scale and every setting of the run (a rerun must match it)
     log.txt         timestamped progress lines (also printed)
     stages/*.json   one file per finished stage: its JSON result; a rerun skips finished stages
+                    (stages/seconds.json: each finished stage's wall seconds)
     csv/*.csv       every number the run measured
     tables/*.md     the tables, our numbers beside the paper's
     figures/*.png   the figures
@@ -120,9 +121,18 @@ class RunFolder:
         t = time.perf_counter()
         self.log(f"stage {name}: start")
         result = fn()
+        seconds = time.perf_counter() - t
         atomic_write(self.path("stages", f"{name}.json"), json.dumps(result, indent=1, default=float))
-        self.log(f"stage {name}: done in {fmt_seconds(time.perf_counter() - t)}")
+        timings = self.stage_seconds()
+        timings[name] = seconds
+        atomic_write(self.out / "stages" / "seconds.json", json.dumps(timings, indent=1))
+        self.log(f"stage {name}: done in {fmt_seconds(seconds)}")
         return json.loads(json.dumps(result, default=float))
+
+    def stage_seconds(self) -> dict:
+        """Wall seconds of every finished stage (of the invocation that finished it)."""
+        p = self.out / "stages" / "seconds.json"
+        return json.loads(p.read_text()) if p.exists() else {}
 
     def write_csv(self, name: str, rows: Sequence[dict]) -> Path:
         """Write ``rows`` (dicts with the same keys) to ``csv/<name>.csv``."""
@@ -147,8 +157,11 @@ class RunFolder:
         return atomic_write(self.path("figures", f"{name}.png"), buf.getvalue())
 
     def finish(self, summary: dict) -> dict:
-        """Write ``summary.json`` (with the machine and wall-clock) and print it as the last line."""
-        summary = {**summary, "machine": machine(), "seconds_this_invocation": time.perf_counter() - self.t0}
+        """Write ``summary.json`` (with the machine, the wall seconds of each stage and their sum)
+        and print it as the last line."""
+        stages = self.stage_seconds()
+        summary = {**summary, "machine": machine(), "stage_seconds": stages, "seconds": sum(stages.values()),
+                   "seconds_this_invocation": time.perf_counter() - self.t0}
         atomic_write(self.out / "summary.json", json.dumps(summary, indent=1, default=float))
         self.log("finished")
         print(json.dumps(summary, default=float), flush=True)

@@ -12,21 +12,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import time
 
 import jax
 import jax.numpy as jnp
 
 import raidjax
-
-
-def machine() -> dict:
-    """Description of the device the benchmark ran on."""
-    dev = jax.devices()[0]
-    return {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
-            "processor": platform.processor() or platform.machine(), "jax": jax.__version__}
+from raidjax.utils import machine
 
 
 def make_rollout(n_arenas: int, n_steps: int):

@@ -11,21 +11,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import time
 
 import jax
 
 from raidjax import pcg
-
-
-def machine() -> dict:
-    """Description of the device the benchmark ran on."""
-    dev = jax.devices()[0]
-    return {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
-            "processor": platform.processor() or platform.machine(), "jax": jax.__version__,
-            "load_average_1m": os.getloadavg()[0]}
+from raidjax.utils import machine
 
 
 def make_rollout(params: pcg.PCGParams, n_steps: int):
@@ -71,7 +62,7 @@ def main() -> None:
     best = min(times)
     steps = args.envs * args.steps
     print(json.dumps({
-        "benchmark": "pcg_throughput", "machine": machine(), "envs": args.envs, "n_games": args.n_games,
+        "benchmark": "pcg_throughput", "machine": machine(load=True), "envs": args.envs, "n_games": args.n_games,
         "steps_per_call": steps, "compile_s": round(compile_s, 2), "best_s": round(best, 3),
         "generator_steps_per_s": round(steps / best, 2), "games_per_s": round(steps * args.n_games / best, 1),
         "times_s": [round(t, 3) for t in times],

@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -23,16 +21,9 @@ from pathlib import Path
 import jax
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script from anywhere
+from raidjax.utils import machine
 from trainers.config import PRESETS  # noqa: E402
 from trainers.mapoca import make_trainer  # noqa: E402
-
-
-def machine() -> dict:
-    """Description of the device and the host (with its current load)."""
-    dev = jax.devices()[0]
-    return {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
-            "processor": platform.processor() or platform.machine(), "jax": jax.__version__,
-            "loadavg_1m": round(os.getloadavg()[0], 2)}
 
 
 def bench(preset: str, repeats: int, **overrides) -> dict:
@@ -73,7 +64,7 @@ def main() -> None:
     args = ap.parse_args()
     overrides = {} if args.arenas is None else {"n_arenas": args.arenas}
     results = [bench(p, args.repeats, **overrides) for p in args.presets]
-    print(json.dumps({"benchmark": "train_throughput", "machine": machine(), "results": results}))
+    print(json.dumps({"benchmark": "train_throughput", "machine": machine(load=True), "results": results}))
 
 
 if __name__ == "__main__":

@@ -31,7 +31,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
-from experiments.runfolder import RunFolder, atomic_write, fmt_seconds
+from experiments.runfolder import RunFolder, atomic_write
+from raidjax.utils import fmt_seconds
 from trainers import checkpoint
 from trainers.cli import MetricsLog
 from trainers.config import PRESETS, Config

@@ -31,9 +31,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from experiments.runfolder import RunFolder, atomic_write, fmt_seconds
+from experiments.runfolder import RunFolder, atomic_write
 from raidjax import pcg
 from raidjax import pcg_metrics as pm
+from raidjax.utils import fmt_seconds
 from trainers.ppo_pcgrl import Config, get_config, make_train
 from trainers.ppo_pcgrl_cli import _groups, evaluate, metric_rows
 

@@ -22,12 +22,13 @@ import csv
 import io
 import json
 import os
-import platform
 import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
+
+from raidjax.utils import fmt_seconds, machine
 
 
 def atomic_write(path: str | Path, data: str | bytes) -> Path:
@@ -51,20 +52,8 @@ def atomic_write(path: str | Path, data: str | bytes) -> Path:
     return path
 
 
-def machine() -> dict:
-    """A short description of the machine and JAX backend (for logs and results)."""
-    import jax
-
-    dev = jax.devices()[0]
-    return {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
-            "processor": platform.processor() or platform.machine(), "jax": jax.__version__}
 
 
-def fmt_seconds(s: float) -> str:
-    """``"1h02m"`` / ``"3m07s"`` / ``"12s"``."""
-    if s >= 3600:
-        return f"{int(s // 3600)}h{int(s % 3600 // 60):02d}m"
-    return f"{int(s // 60)}m{int(s % 60):02d}s" if s >= 60 else f"{s:.0f}s"
 
 
 class RunFolder:

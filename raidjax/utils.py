@@ -1,6 +1,10 @@
-"""Small array helpers that stay fast under ``vmap`` on CPU."""
+"""Small array helpers that stay fast under ``vmap`` on CPU, and two host-side reporting helpers
+(``machine``, ``fmt_seconds``) shared by the benchmarks, trainers and experiments."""
 
 from __future__ import annotations
+
+import os
+import platform
 
 import jax
 import jax.numpy as jnp
@@ -52,3 +56,22 @@ def uniform_dice(key: jax.Array, shape: tuple[int, ...]) -> jax.Array:
     x = x * jnp.uint32(0xC2B2AE35)
     x = x ^ (x >> 16)
     return ((x >> 8).astype(jnp.float32) * (1.0 / (1 << 24))).reshape(shape)
+
+
+def machine(load: bool = False) -> dict:
+    """A JSON-able description of the JAX device and the host: ``platform``, ``device``,
+    ``cpu_count``, ``processor``, ``jax`` version, and with ``load`` the 1-minute load average
+    (``load_average_1m``; timings on a shared machine depend on it)."""
+    dev = jax.devices()[0]
+    out = {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
+           "processor": platform.processor() or platform.machine(), "jax": jax.__version__}
+    if load:
+        out["load_average_1m"] = round(os.getloadavg()[0], 2)
+    return out
+
+
+def fmt_seconds(s: float) -> str:
+    """A duration for progress lines: ``"1h02m"``, ``"3m07s"`` or ``"12s"``."""
+    if s >= 3600:
+        return f"{int(s // 3600)}h{int(s % 3600 // 60):02d}m"
+    return f"{int(s // 60)}m{int(s % 60):02d}s" if s >= 60 else f"{s:.0f}s"

@@ -15,8 +15,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -25,6 +23,7 @@ import jax
 import numpy as np
 
 import raidjax
+from raidjax.utils import fmt_seconds, machine
 from trainers import checkpoint
 from trainers.config import Config, load_config
 from trainers.mapoca import make_trainer, summarize
@@ -50,15 +49,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
-def machine() -> dict:
-    """Short description of the machine."""
-    dev = jax.devices()[0]
-    return {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
-            "processor": platform.processor() or platform.machine(), "jax": jax.__version__}
 
 
-def _fmt_time(s: float) -> str:
-    return f"{int(s // 3600)}h{int(s % 3600 // 60):02d}m" if s >= 3600 else f"{int(s // 60)}m{int(s % 60):02d}s"
 
 
 def _tensorboard_writer(out: Path):
@@ -181,7 +173,7 @@ def main(argv=None) -> dict:
         eta = (end_chunk - c - 1) * el / done_here
         total = cfg.num_updates * cfg.decisions_per_update
         print(f"[{c + 1}/{cfg.num_chunks}] steps {steps / 1e6:.2f}M/{total / 1e6:.2f}M"
-              f"  {sps:,.0f} steps/s  ETA {_fmt_time(eta)}  return {row['return']:.2f}  win {row['win_rate']:.3f}"
+              f"  {sps:,.0f} steps/s  ETA {fmt_seconds(eta)}  return {row['return']:.2f}  win {row['win_rate']:.3f}"
               f"  len {row['length']:.0f}  ent {row['entropy']:.2f}", flush=True)
         if (c + 1) % every == 0 or c + 1 == cfg.num_chunks:
             checkpoint.save(ckpt_dir, runner, cfg, {"chunk": c + 1, "update": (c + 1) * cfg.updates_per_chunk,

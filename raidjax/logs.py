@@ -107,6 +107,13 @@ def record_episode(key: jax.Array, params: Params, policy: Callable, n_decisions
     return trace, episode_summary(state)
 
 
+def grid_cell(pos: jax.Array, bins: int = HEATMAP_BINS) -> jax.Array:
+    """Cell ``int32[..., 2]`` (x bin, y bin) of positions ``float32[..., 2]`` on a ``bins x bins``
+    grid over the arena; positions on or beyond a wall fall in the edge cells."""
+    cell = jnp.floor((pos + HALF_ARENA) / (2 * HALF_ARENA) * bins).astype(jnp.int32)
+    return jnp.clip(cell, 0, bins - 1)
+
+
 def occupancy_heatmap(pos: jax.Array, mask: jax.Array, bins: int = HEATMAP_BINS) -> jax.Array:
     """Average position occupancy on a ``bins x bins`` grid over the arena (SPEC §11).
 
@@ -119,8 +126,7 @@ def occupancy_heatmap(pos: jax.Array, mask: jax.Array, bins: int = HEATMAP_BINS)
         ``float32[bins, bins]`` indexed ``[x_bin, y_bin]``, summing to 1 (all zeros if nothing
         counted).
     """
-    cell = jnp.floor((pos + HALF_ARENA) / (2 * HALF_ARENA) * bins).astype(jnp.int32)
-    cell = jnp.clip(cell, 0, bins - 1).reshape(-1, 2)
+    cell = grid_cell(pos, bins).reshape(-1, 2)
     w = mask.reshape(-1).astype(jnp.float32)
     counts = jnp.zeros((bins, bins)).at[cell[:, 0], cell[:, 1]].add(w)
     return counts / jnp.maximum(counts.sum(), 1.0)

@@ -9,8 +9,7 @@ import jax
 import jax.numpy as jnp
 
 from raidjax.env import reset, step
-from raidjax.logs import HEATMAP_BINS, episode_summary
-from raidjax.movement import HALF_ARENA
+from raidjax.logs import HEATMAP_BINS, episode_summary, grid_cell
 from raidjax.observation import observe
 from raidjax.types import RUNNING, Params
 
@@ -39,12 +38,37 @@ def broadcast_params(params: Params, n_games: int) -> Params:
     return jax.tree.map(lambda x: jnp.repeat(x, n_games // g, axis=0), params)
 
 
+def _play_games(key: jax.Array, batch: Params, policy: Policy, n_games: int, fold=None, acc=None):
+    """Play ``n_games`` games (``batch``: params with a leading ``n_games`` axis) until every one
+    has ended. ``fold(acc, state) -> acc`` sees the reset state and the state after every
+    decision (e.g. to accumulate occupancy). Returns ``(final state, acc)``."""
+    fold = fold or (lambda a, _: a)
+    k_reset, k_play = jax.random.split(key)
+    _, state = jax.vmap(reset)(jax.random.split(k_reset, n_games), batch)
+    obs = jax.vmap(observe)(state, batch)
+    max_t = batch.config.max_decisions
+
+    def play(carry):
+        t, obs, state, acc = carry
+        keys = jax.random.split(jax.random.fold_in(k_play, t), 2 * n_games)  # raw or typed keys
+        actions = jax.vmap(policy)(keys[:n_games], obs, state, batch)
+        obs, state, _, _, _ = jax.vmap(step)(keys[n_games:], state, actions, batch)
+        return t + 1, obs, state, fold(acc, state)
+
+    def running(carry):
+        t, _, state, _ = carry
+        return (t < max_t) & jnp.any(state.result == RUNNING)
+
+    _, _, state, acc = jax.lax.while_loop(running, play, (jnp.int32(0), obs, state, fold(acc, state)))
+    return state, acc
+
+
 @partial(jax.jit, static_argnames=("policy", "n_games"))
 def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> dict[str, jax.Array]:
     """Play ``n_games`` games in parallel until every one has ended (win, loss or draw).
 
     Args:
-        key: PRNG key.
+        key: PRNG key (typed or a legacy ``uint32[2]`` key).
         params: content, unbatched or batched (see ``broadcast_params``).
         policy: ``policy(key, obs, state, params) -> int32[P]`` for one arena (e.g.
             ``raidjax.policies.heuristic``); it must be hashable (a function, not a lambda
@@ -57,32 +81,14 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> di
         int32[n, P], ``deaths`` int32 (players dead at the end), ``alive`` bool[n, P],
         ``dropped`` int32 (projectiles dropped), ``boss_hp`` float32.
     """
-    batch = broadcast_params(params, n_games)
-    k_reset, k_play = jax.random.split(key)
-    _, state = jax.vmap(reset)(jax.random.split(k_reset, n_games), batch)
-    obs = jax.vmap(observe)(state, batch)
-    max_t = batch.config.max_decisions
-
-    def play(carry):
-        t, obs, state = carry
-        keys = jax.random.split(jax.random.fold_in(k_play, t), 2 * n_games)  # raw or typed keys
-        keys = (keys[:n_games], keys[n_games:])
-        actions = jax.vmap(policy)(keys[0], obs, state, batch)
-        obs, state, _, _, _ = jax.vmap(step)(keys[1], state, actions, batch)
-        return t + 1, obs, state
-
-    def running(carry):
-        t, _, state = carry
-        return (t < max_t) & jnp.any(state.result == RUNNING)
-
-    _, _, state = jax.lax.while_loop(running, play, (jnp.int32(0), obs, state))
+    state, _ = _play_games(key, broadcast_params(params, n_games), policy, n_games)
     return episode_summary(state)
 
 
 @partial(jax.jit, static_argnames=("policy", "n_games", "bins"))
 def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int,
                        bins: int = HEATMAP_BINS) -> jax.Array:
-    """Per-player position occupancy over ``n_games`` games played as ``playtest`` plays them.
+    """Per-player position occupancy over the games ``playtest`` would play with the same key.
 
     Counts, at every decision (the reset state included) of every game still running, the cell
     of each alive player on a ``bins x bins`` grid over the arena (SPEC §11), without storing
@@ -98,32 +104,14 @@ def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: 
     """
     batch = broadcast_params(params, n_games)
     n_players = batch.team.shape[-1] - 1
-    k_reset, k_play = jax.random.split(key)
-    _, state = jax.vmap(reset)(jax.random.split(k_reset, n_games), batch)
-    obs = jax.vmap(observe)(state, batch)
-    max_t = batch.config.max_decisions
 
     def count(counts, state):
-        pos = state.pos[:, :n_players]  # [n, P, 2]
-        cell = jnp.clip(jnp.floor((pos + HALF_ARENA) / (2 * HALF_ARENA) * bins).astype(jnp.int32), 0, bins - 1)
+        cell = grid_cell(state.pos[:, :n_players], bins)  # [n, P, 2]
         w = (state.alive[:, :n_players] & (state.result == RUNNING)[:, None]).astype(jnp.float32)
         player = jnp.broadcast_to(jnp.arange(n_players), w.shape)
         return counts.at[player, cell[..., 0], cell[..., 1]].add(w)
 
-    def play(carry):
-        t, obs, state, counts = carry
-        keys = jax.random.split(jax.random.fold_in(k_play, t), 2 * n_games)  # raw or typed keys
-        keys = (keys[:n_games], keys[n_games:])
-        actions = jax.vmap(policy)(keys[0], obs, state, batch)
-        obs, state, _, _, _ = jax.vmap(step)(keys[1], state, actions, batch)
-        return t + 1, obs, state, count(counts, state)
-
-    def running(carry):
-        t, _, state, _ = carry
-        return (t < max_t) & jnp.any(state.result == RUNNING)
-
-    counts = count(jnp.zeros((n_players, bins, bins)), state)
-    *_, counts = jax.lax.while_loop(running, play, (jnp.int32(0), obs, state, counts))
+    _, counts = _play_games(key, batch, policy, n_games, count, jnp.zeros((n_players, bins, bins)))
     return counts / jnp.maximum(counts.sum((1, 2), keepdims=True), 1.0)
 
 

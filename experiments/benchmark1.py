@@ -167,21 +167,24 @@ def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int):
     return trainer.actor, runner.params["actor"]
 
 
-def team_outcomes(key, actor, weights, contents, n_games: int) -> jax.Array:
-    """Outcomes ``int32[C, n_games]`` of C (team, content) cells, one vmapped playtest.
+def per_team(key, actor, weights, contents, measure) -> jax.Array:
+    """``measure(key, content, policy)`` of C (team, content) cells, vmapped in one program.
 
     Args:
-        key: PRNG key (one stream per cell is folded from it).
+        key: PRNG key (split into one key per cell).
         actor: the actor module; weights: its parameters with a leading axis C.
         contents: ``Params`` with a leading axis C.
-        n_games: games per cell.
+        measure: e.g. ``lambda k, c, p: raidjax.playtest(k, c, p, n)["outcome"]``.
+
+    Returns:
+        ``measure``'s output with a leading axis C.
     """
 
     def one(k, w, content):
         def policy(kk, obs, state, params):
             return sample_actions(kk, actor.apply(w, obs), obs.alive)[0]
 
-        return raidjax.playtest(k, content, policy, n_games)["outcome"]
+        return measure(k, content, policy)
 
     keys = jax.random.split(key, jax.tree.leaves(contents)[0].shape[0])
     return jax.jit(jax.vmap(one))(keys, weights, contents)
@@ -200,23 +203,25 @@ def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> d
     contents = _stack([content_of(k, rg) for _, k, rg, _ in cells])
     w = jax.tree.map(lambda x: x[jnp.asarray([c[0] for c in cells])], weights)
     t = time.perf_counter()
-    out = np.asarray(team_outcomes(jax.random.PRNGKey(base_seed + 777), actor, w, contents, scale.games))
+    out = np.asarray(per_team(jax.random.PRNGKey(base_seed + 777), actor, w, contents,
+                              lambda k, c, p: raidjax.playtest(k, c, p, scale.games)["outcome"]))
     rf.log(f"evaluate: {len(cells)} team cells x {scale.games} games in {time.perf_counter() - t:.0f}s")
     rows = [{"agent": runs[i]["name"].split("/")[1] if runs[i]["group"] == "robust" else "MA-POCA",
              "group": runs[i]["group"], "run": runs[i]["name"], "seed": s, "content": kind, "range": rg,
              "win_rate": float(np.mean(o == 1)), "draw_rate": float(np.mean(o == 3)), "games": scale.games}
             for (i, kind, rg, s), o in zip(cells, out, strict=True)]
-    # scripted agents: every (content, range) cell, `seeds` independent batches of games
-    pt_cells = [("reference", r) for r in TABLE_RANGES] + [("test", r) for r in TEST_RANGES]
+    # scripted agents: every (content, range) cell x `seeds` independent batches of games, one
+    # playtest per policy with one content per group of games
+    contents_ranges = [("reference", r) for r in TABLE_RANGES] + [("test", r) for r in TEST_RANGES]
+    pt_cells = [(kind, rg, sd) for kind, rg in contents_ranges for sd in range(scale.seeds)]
+    pt_contents = _stack([content_of(kind, rg) for kind, rg, _ in pt_cells])
     for name, pol in (("PT-HR", raidjax.policies.heuristic), ("PT-RD", raidjax.policies.random)):
-        pt_key = jax.random.PRNGKey(base_seed + (999 if name == "PT-HR" else 998))
-        for j, (kind, rg) in enumerate(pt_cells):
-            for s in range(scale.seeds):
-                key = jax.random.fold_in(pt_key, 1000 * j + s)
-                o = np.asarray(raidjax.playtest(key, content_of(kind, rg), pol, scale.games)["outcome"])
-                rows.append({"agent": name, "group": "scripted", "run": name, "seed": s, "content": kind,
-                             "range": rg, "win_rate": float(np.mean(o == 1)), "draw_rate": float(np.mean(o == 3)),
-                             "games": scale.games})
+        key = jax.random.PRNGKey(base_seed + (999 if name == "PT-HR" else 998))
+        out = raidjax.playtest(key, pt_contents, pol, len(pt_cells) * scale.games)["outcome"]
+        for (kind, rg, sd), o in zip(pt_cells, np.asarray(out).reshape(len(pt_cells), scale.games), strict=True):
+            rows.append({"agent": name, "group": "scripted", "run": name, "seed": sd, "content": kind, "range": rg,
+                         "win_rate": float(np.mean(o == 1)), "draw_rate": float(np.mean(o == 3)),
+                         "games": scale.games})
     rf.write_csv("win_rates", rows)
     return {"cells": rows}
 
@@ -230,15 +235,8 @@ def heatmaps(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> d
     grid = [(i, rg) for i in idx for rg in scale.heatmap_ranges]
     contents = _stack([test_content(rg) for _, rg in grid])
     w = jax.tree.map(lambda x: x[jnp.asarray([g[0] for g in grid])], weights)
-
-    def one(k, w, content):
-        def policy(kk, obs, state, params):
-            return sample_actions(kk, actor.apply(w, obs), obs.alive)[0]
-
-        return raidjax.playtest_occupancy(k, content, policy, scale.heatmap_games)
-
-    keys = jax.random.split(jax.random.PRNGKey(base_seed + 555), len(grid))
-    maps = np.asarray(jax.jit(jax.vmap(one))(keys, w, contents))
+    maps = np.asarray(per_team(jax.random.PRNGKey(base_seed + 555), actor, w, contents,
+                               lambda k, c, p: raidjax.playtest_occupancy(k, c, p, scale.heatmap_games)))
     maps = maps.reshape(len(agents), len(scale.heatmap_ranges), *maps.shape[1:])
     buf = io.BytesIO()
     np.savez(buf, maps=maps, agents=np.asarray(agents), ranges=np.asarray(scale.heatmap_ranges))

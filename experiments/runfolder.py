@@ -163,11 +163,3 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(fmt(v) for v in r) + " |" for r in rows]
     return "\n".join(lines)
-
-
-def mean_sd(xs: Sequence[float]) -> str:
-    """``"0.512 ± 0.031"`` (SD with ddof 0; just the value for one sample)."""
-    import numpy as np
-
-    xs = np.asarray(xs, float)
-    return f"{xs.mean():.3f}" if xs.size == 1 else f"{xs.mean():.3f} ± {xs.std():.3f}"

@@ -36,7 +36,7 @@ from raidjax.utils import fmt_seconds
 from trainers import checkpoint
 from trainers.cli import MetricsLog
 from trainers.config import PRESETS, Config
-from trainers.mapoca import make_trainer, range_table, sample_actions
+from trainers.mapoca import RANGE_TABLE, make_trainer, range_table, sample_actions
 
 TABLE_RANGES = (5.0, 9.0, 13.0, 17.0)
 ROBUST_SETS = {"MA-POCA1": (5.0,), "MA-POCA2": (5.0, 9.0), "MA-POCA3": (5.0, 9.0, 13.0),
@@ -103,7 +103,7 @@ def _stack(trees):
 def _run_inputs(runs: list[dict], base_seed: int):
     keys = jnp.stack([jax.random.fold_in(jax.random.PRNGKey(base_seed), i) for i in range(len(runs))])
     contents = _stack([raidjax.make_params() if r["content"] == "reference" else test_content() for r in runs])
-    tables = jnp.stack([range_table(r["ranges"]) for r in runs])
+    tables = jnp.stack([range_table(r["ranges"], size=RANGE_TABLE) for r in runs])  # one shape for all runs
     return keys, contents, tables
 
 

@@ -278,5 +278,7 @@ def test_range_table_tiles_sets_uniformly():
         values, counts = np.unique(t, return_counts=True)
         np.testing.assert_array_equal(values, sorted(ranges))
         assert np.all(counts == RANGE_TABLE // len(ranges))  # every value equally likely
+    t = np.asarray(range_table((1.0, 2.0, 3.0, 4.0, 5.0)))  # any count: the table grows to lcm(5, 12)
+    assert t.shape == (60,) and np.all(np.unique(t, return_counts=True)[1] == 12)
     with pytest.raises(ValueError, match="skill_ranges: 5 values"):
-        range_table((1.0, 2.0, 3.0, 4.0, 5.0))
+        range_table((1.0, 2.0, 3.0, 4.0, 5.0), size=RANGE_TABLE)

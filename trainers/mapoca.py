@@ -27,6 +27,7 @@ acted (was alive at t), normalised over those entries of the whole update.
 
 from __future__ import annotations
 
+import math
 from typing import Any, NamedTuple
 
 import jax
@@ -210,22 +211,28 @@ class Trainer(NamedTuple):
 
 
 EPISODE_KEYS = ("episodes", "return_sum", "wins", "draws", "length_sum")
-RANGE_TABLE = 12  # lcm(1, 2, 3, 4): sets of 1-4 ranges tile it exactly, so draws stay uniform
+RANGE_TABLE = 12  # lcm(1, 2, 3, 4): sets of 1-4 ranges share one table shape, so draws stay uniform
 
 
-def range_table(ranges) -> jax.Array:
-    """The set of skill ranges a run draws from, tiled to ``float32[RANGE_TABLE]``.
+def range_table(ranges, size: int | None = None) -> jax.Array:
+    """The set of skill ranges a run draws from, tiled to ``float32[size]``.
 
-    A uniform draw over the table is a uniform draw over the set, and every run's table has the
-    same shape, so runs with different range sets are one vmapped program (``experiments``).
+    A uniform draw over the table is a uniform draw over the set. Runs whose tables share a size
+    are one vmapped program (``experiments.benchmark1``: sets of 1-4 ranges, size 12).
+
+    Args:
+        ranges: the set (k values).
+        size: table length, a multiple of k (default ``lcm(k, RANGE_TABLE)``).
 
     Raises:
-        ValueError: ``len(ranges)`` does not divide ``RANGE_TABLE``.
+        ValueError: an empty set, or ``size`` not a multiple of k.
     """
     ranges = tuple(float(r) for r in ranges)
-    if not ranges or RANGE_TABLE % len(ranges):
-        raise ValueError(f"skill_ranges: {len(ranges)} values given; allowed 1, 2, 3, 4, 6 or 12")
-    return jnp.asarray(ranges * (RANGE_TABLE // len(ranges)), jnp.float32)
+    size = math.lcm(len(ranges), RANGE_TABLE) if size is None and ranges else size
+    if not ranges or size % len(ranges):
+        raise ValueError(f"skill_ranges: {len(ranges)} values cannot tile a table of {size} entries "
+                         "(allowed: 1 or more values, a divisor of the table size)")
+    return jnp.asarray(ranges * (size // len(ranges)), jnp.float32)
 
 
 def make_trainer(config: Config, base_params: Params | None = None, redraw_ranges: bool | None = None) -> Trainer:

@@ -15,6 +15,10 @@ one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
 3. ``report``: controllability / diversity / yield tables beside the paper's numbers, the t-SNE
    and controllability figures (``experiments.b2_report``).
 
+Variants beyond the paper's protocol (each recorded in ``config.json``): ``--pool-repeats`` (the
+generation environment pools the games of an unchanged skill, for all three generators),
+``--edit-cost``, ``--ent-coef`` and ``--total-steps`` (PPO learner), ``--seeds``, ``--episodes``.
+
 The last stdout line is the JSON summary (also ``summary.json``).
 """
 
@@ -108,7 +112,13 @@ def _parse(argv=None) -> argparse.Namespace:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--edit-cost", type=float, help="PPO learner penalty per tick moved (env reward units; "
                     "default: the scale's, 0 = the paper's reward)")
+    ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
+    ap.add_argument("--total-steps", type=int, help="PPO generator steps per group (default: the scale's)")
     ap.add_argument("--seeds", type=int, help="PPO seeds trained together (default: the scale's)")
+    ap.add_argument("--episodes", type=int, help="generation episodes per target and method (default: the scale's)")
+    ap.add_argument("--pool-repeats", action="store_true",
+                    help="generation env: re-measuring an unchanged skill pools its games (all three "
+                    "generators, training and generation)")
     return ap.parse_args(argv)
 
 
@@ -280,8 +290,16 @@ def main(argv=None) -> dict:
     scale = SCALES[a.scale]
     if a.edit_cost is not None:
         scale = dataclasses.replace(scale, ppo={**scale.ppo, "edit_cost": a.edit_cost})
+    if a.pool_repeats:
+        scale = dataclasses.replace(scale, ppo={**scale.ppo, "pool_repeats": True})
+    if a.ent_coef is not None:
+        scale = dataclasses.replace(scale, ppo={**scale.ppo, "ent_coef": a.ent_coef})
+    if a.total_steps is not None:
+        scale = dataclasses.replace(scale, ppo={**scale.ppo, "total_steps": a.total_steps})
     if a.seeds is not None:
         scale = dataclasses.replace(scale, seeds=a.seeds)
+    if a.episodes is not None:
+        scale = dataclasses.replace(scale, episodes=a.episodes)
     if scale.episodes % scale.parts or (scale.episodes // scale.parts) % scale.seeds:
         raise ValueError("episodes must split evenly into parts and, per part, over the PPO seeds")
     config = {"benchmark": 2, "scale": a.scale, "seed": a.seed, **dataclasses.asdict(scale),

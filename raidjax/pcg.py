@@ -16,6 +16,10 @@ when ``|w - t| <= band`` after an edit (not checked at reset; off with ``strict_
 on an ended episode performs the reset (new skill, new target, its measurement) instead of an
 edit and reports ``info["valid"] = False`` (the learner masks that transition out).
 
+``pool_repeats`` (opt-in, beyond SPEC §10): re-measuring an unchanged skill pools its games, so
+a generator that holds a skill gets an ever sharper win rate (the 100-game SE, ≈ 0.05, is wider
+than the ±0.02 band).
+
 Shapes are for one episode; ``jax.vmap`` runs many generator episodes in parallel, each with
 its own batch of ``n_games`` playtests.
 """
@@ -69,6 +73,11 @@ class PCGParams:
         max_edits: edits per episode at most (static).
         strict_length: never end early (static).
         observe_target: append target and last win rate to the observation (static).
+        pool_repeats: an edit that leaves the skill unchanged (all-zero action, or a move
+            clipped away) re-measures it and pools the new games with the earlier measurements of
+            the same skill, so holding a skill sharpens its win rate; the observation then also
+            carries ``sqrt(100 / games)``, proportional to the win rate's standard error (static;
+            off = SPEC §10).
     """
 
     game: Params
@@ -79,6 +88,7 @@ class PCGParams:
     max_edits: int = struct.field(pytree_node=False, default=40)
     strict_length: bool = struct.field(pytree_node=False, default=False)
     observe_target: bool = struct.field(pytree_node=False, default=True)
+    pool_repeats: bool = struct.field(pytree_node=False, default=False)
 
 
 @struct.dataclass
@@ -92,6 +102,7 @@ class PCGState:
         edits: ``int32[]`` edits made this episode.
         done: ``bool[]`` the episode has ended (``step_autoreset`` resets on the next call).
         reached: ``bool[]`` some measurement after an edit fell within the band.
+        games: ``float32[]`` games behind ``win_rate`` (``n_games``, more when pooled).
     """
 
     skill: jax.Array
@@ -100,6 +111,7 @@ class PCGState:
     edits: jax.Array
     done: jax.Array
     reached: jax.Array
+    games: jax.Array
 
 
 _BASE: list[Params] = []
@@ -115,13 +127,13 @@ def base_game() -> Params:
 
 def make_params(
     *, target: float | tuple[float, float] = (0.1, 0.7), n_games: int = 100, max_edits: int = 40,
-    band: float = 0.02, strict_length: bool = False, observe_target: bool = True,
+    band: float = 0.02, strict_length: bool = False, observe_target: bool = True, pool_repeats: bool = False,
 ) -> PCGParams:
     """Build ``PCGParams`` on the host.
 
     Args:
         target: a fixed target win rate, or ``(low, high)`` to draw one uniformly per episode.
-        n_games, max_edits, band, strict_length, observe_target: see ``PCGParams``.
+        n_games, max_edits, band, strict_length, observe_target, pool_repeats: see ``PCGParams``.
 
     Returns:
         ``PCGParams``.
@@ -133,7 +145,8 @@ def make_params(
         raise ValueError(f"n_games={n_games}, max_edits={max_edits}: both must be >= 1")
     f = lambda x: np.float32(x)
     return PCGParams(game=base_game(), target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
-                     max_edits=max_edits, strict_length=strict_length, observe_target=observe_target)
+                     max_edits=max_edits, strict_length=strict_length, observe_target=observe_target,
+                     pool_repeats=pool_repeats)
 
 
 def skill_params(game: Params, skill: jax.Array) -> Params:
@@ -175,16 +188,19 @@ def in_band(params: PCGParams, target: jax.Array, w: jax.Array) -> jax.Array:
 
 def observe(state: PCGState, params: PCGParams) -> jax.Array:
     """Observation: the 4 parameters min-max scaled to [0, 1], then target and last win rate when
-    ``params.observe_target``: ``float32[4]`` or ``float32[6]``."""
+    ``params.observe_target``, then ``sqrt(100 / games)`` when ``params.pool_repeats``:
+    ``float32[obs_size(params)]`` (4 to 7)."""
     x = (state.skill - low()) / (high() - low())
     if params.observe_target:
         x = jnp.concatenate([x, jnp.stack([state.target, state.win_rate])])
+    if params.pool_repeats:
+        x = jnp.concatenate([x, jnp.sqrt(100.0 / state.games)[None]])
     return x.astype(jnp.float32)
 
 
 def obs_size(params: PCGParams) -> int:
-    """Length of the observation vector (4 or 6)."""
-    return N_PARAMS + 2 * int(params.observe_target)
+    """Length of the observation vector (4 to 7)."""
+    return N_PARAMS + 2 * int(params.observe_target) + int(params.pool_repeats)
 
 
 def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None) -> tuple[jax.Array, jax.Array]:
@@ -210,14 +226,22 @@ def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) ->
     skill, target = _fresh(k_new, params, target)
     w = measure(k_play, params, skill)
     state = PCGState(skill=skill, target=target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
-                     reached=jnp.bool_(False))
+                     reached=jnp.bool_(False), games=jnp.float32(params.n_games))
     return observe(state, params), state
 
 
 def advance(state: PCGState, skill: jax.Array, w: jax.Array, params: PCGParams) -> tuple[PCGState, jax.Array]:
-    """Book one edit whose skill ``float32[4]`` measured win rate ``w`` (``float32[]``): count it,
-    pay ``reward_fn(t, state.win_rate, w)``, end the episode at ``max_edits`` or, unless
-    ``strict_length``, inside the band. Returns ``(PCGState, reward float32[])``."""
+    """Book one edit whose skill ``float32[4]`` measured win rate ``w`` (``float32[]``, over
+    ``n_games`` games): count it, pool ``w`` with the earlier games when ``pool_repeats`` and the
+    skill is unchanged, pay ``reward_fn(t, state.win_rate, w)`` with that (pooled) ``w``, end the
+    episode at ``max_edits`` or, unless ``strict_length``, inside the band.
+    Returns ``(PCGState, reward float32[])``."""
+    n = jnp.float32(params.n_games)
+    games = n
+    if params.pool_repeats:
+        same = jnp.all(skill == state.skill)
+        games = jnp.where(same, state.games + n, n)
+        w = jnp.where(same, (state.win_rate * state.games + w * n) / games, w)
     edits = state.edits + 1
     close = in_band(params, state.target, w)
     done = edits >= params.max_edits
@@ -225,7 +249,7 @@ def advance(state: PCGState, skill: jax.Array, w: jax.Array, params: PCGParams) 
         done = done | close
     reward = reward_fn(state.target, state.win_rate, w)
     new = PCGState(skill=skill, target=state.target, win_rate=w, edits=edits, done=done,
-                   reached=state.reached | close)
+                   reached=state.reached | close, games=games)
     return new, reward
 
 
@@ -246,7 +270,7 @@ def step(key: jax.Array, state: PCGState, action: jax.Array, params: PCGParams):
     skill = apply_action(state.skill, action)
     w = measure(key, params, skill)
     new, reward = advance(state, skill, w, params)
-    info = {"win_rate": w, "edits": new.edits, "reached": new.reached, "valid": jnp.bool_(True)}
+    info = {"win_rate": new.win_rate, "edits": new.edits, "reached": new.reached, "valid": jnp.bool_(True)}
     return observe(new, params), new, reward, new.done, info
 
 
@@ -267,11 +291,11 @@ def step_autoreset(key: jax.Array, state: PCGState, action: jax.Array, params: P
     w = measure(k_play, params, skill)
     edited, reward = advance(state, skill, w, params)
     started = PCGState(skill=skill, target=fresh_target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
-                       reached=jnp.bool_(False))
+                       reached=jnp.bool_(False), games=jnp.float32(params.n_games))
     new = jax.tree.map(lambda a, b: jnp.where(state.done, a, b), started, edited)
     reward = jnp.where(state.done, 0.0, reward)
-    info = {"win_rate": w, "edits": new.edits, "reached": new.reached, "valid": ~state.done,
-            "final_error": jnp.abs(new.target - w)}
+    info = {"win_rate": new.win_rate, "edits": new.edits, "reached": new.reached, "valid": ~state.done,
+            "final_error": jnp.abs(new.target - new.win_rate)}
     return observe(new, params), new, reward, new.done, info
 
 

@@ -14,9 +14,10 @@ LOW, HIGH = np.array(pcg.LOW), np.array(pcg.HIGH)
 TICK = (HIGH - LOW) / 6
 
 
-def _state(skill=(10.0, 0.55, 1.0, 0.75), target=0.5, w=0.3, edits=0):
+def _state(skill=(10.0, 0.55, 1.0, 0.75), target=0.5, w=0.3, edits=0, games=4):
     return pcg.PCGState(skill=jnp.asarray(skill, jnp.float32), target=jnp.float32(target), win_rate=jnp.float32(w),
-                        edits=jnp.int32(edits), done=jnp.bool_(False), reached=jnp.bool_(False))
+                        edits=jnp.int32(edits), done=jnp.bool_(False), reached=jnp.bool_(False),
+                        games=jnp.float32(games))
 
 
 def test_ticks_and_clipping():
@@ -99,6 +100,47 @@ def test_observation_modes():
     assert pcg.observe(st, pcg.make_params(n_games=4, observe_target=False)).shape == (4,)
 
 
+def test_pool_repeats_pools_only_an_unchanged_skill():
+    p = pcg.make_params(n_games=4, pool_repeats=True, strict_length=True)
+    st = _state(target=0.5, w=0.25, games=4)
+    same, _ = pcg.advance(st, st.skill, jnp.float32(0.75), p)  # 1 + 3 wins of 8 games
+    assert float(same.games) == 8 and float(same.win_rate) == pytest.approx(0.5)
+    again, r = pcg.advance(same, st.skill, jnp.float32(1.0), p)  # 4 + 4 wins of 12 games
+    assert float(again.games) == 12 and float(again.win_rate) == pytest.approx(8 / 12)
+    assert float(r) == pytest.approx((0.0 - (8 / 12 - 0.5)) * 100, abs=1e-3)  # paid on the pooled rate
+    moved, _ = pcg.advance(again, st.skill + 1.0, jnp.float32(0.0), p)
+    assert float(moved.games) == 4 and float(moved.win_rate) == 0.0
+    off, _ = pcg.advance(st, st.skill, jnp.float32(0.75), pcg.make_params(n_games=4, strict_length=True))
+    assert float(off.games) == 4 and float(off.win_rate) == pytest.approx(0.75)  # SPEC default: no pooling
+    o = pcg.observe(again, p)
+    assert o.shape == (pcg.obs_size(p),) == (7,) and float(o[-1]) == pytest.approx(np.sqrt(100 / 12))
+
+
+def test_pooled_win_rate_is_mean_of_all_games_of_the_held_skill():
+    p = pcg.make_params(n_games=8, pool_repeats=True, strict_length=True, max_edits=3)
+    key = jax.random.key(7)
+    _, st = pcg.reset(key, p)
+    keys = jax.random.split(jax.random.key(8), 2)
+    hold = jnp.full(4, pcg.NOOP_ACTION, jnp.int32)
+    for k in keys:
+        _, st, _, _, _ = pcg.step(k, st, hold, p)
+    outcomes = [pcg.play_outcomes(k, p.game, st.skill, 8) for k in (jax.random.split(key)[1], *keys)]
+    assert float(st.games) == 24
+    assert float(st.win_rate) == pytest.approx(float(np.mean(np.concatenate(outcomes))), abs=1e-6)
+
+
+def test_holding_heuristic_holds_within_k_standard_errors():
+    from experiments.pcg_hold import holding_heuristic
+
+    p = pcg.make_params(n_games=100)
+    st = _state(target=0.5, w=0.53, games=100)  # SE = 0.05: 0.03 off is inside 0.02 + 1 SE, outside 0.02
+    key = jax.random.key(0)
+    assert (np.asarray(holding_heuristic(1.0, key, None, st, p)) == pcg.NOOP_ACTION).all()
+    moved = np.asarray(holding_heuristic(0.0, key, None, st, p))
+    assert (moved != pcg.NOOP_ACTION).sum() == 1  # plain PCG-HR: one parameter, half a tick
+    np.testing.assert_array_equal(moved, np.asarray(pcg.heuristic_policy(None, key, None, st, p)))
+
+
 def test_win_rate_is_mean_of_game_outcomes():
     p = pcg.make_params(n_games=8)
     skill = jnp.asarray((20.0, 0.5, 0.5, 0.6))
@@ -140,13 +182,14 @@ def test_diversity_on_hand_set():
     assert y == {"yield": 0.5, "edits_mean": 22.0, "edits_sd": 18.0}
 
 
-def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path):
+@pytest.mark.parametrize("pool", [False, True])
+def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool):
     import orbax.checkpoint as ocp
 
     from trainers.ppo_pcgrl import Config, make_policy, make_train
 
     cfg = Config(n_envs=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=(8,), n_games=2,
-                 max_edits=2)
+                 max_edits=2, pool_repeats=pool)
     train = make_train(cfg)
     runner, metrics = jax.jit(train)(jax.random.key(0))
     assert metrics["reward"].shape == (2,) and np.isfinite(np.asarray(metrics["pg_loss"])).all()
@@ -160,7 +203,8 @@ def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path):
     for a, b in zip(jax.tree.leaves(runner), jax.tree.leaves(back), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     policy = make_policy((8,), True)
-    obs = pcg.observe(_state(), pcg.make_params(n_games=2))
+    obs = pcg.observe(_state(), pcg.make_params(n_games=2, pool_repeats=pool))
+    assert obs.shape == (6 + pool,)
     a = policy(back["params"], jax.random.key(1), obs, None, None)
     assert a.shape == (4,) and a.dtype == jnp.int32
 

@@ -51,6 +51,7 @@ class Config:
     observe_target: bool = True
     strict_length: bool = False
     max_edits: int = 40
+    pool_repeats: bool = False  # env: re-measuring an unchanged skill pools its games (pcg.PCGParams)
 
     @property
     def n_updates(self) -> int:
@@ -100,7 +101,8 @@ class Transition(NamedTuple):
 def env_params(config: Config, target=None) -> pcg.PCGParams:
     """``PCGParams`` for training; ``target`` (``float32[2]`` low/high, traced ok) overrides the config."""
     p = pcg.make_params(target=tuple(config.target), n_games=config.n_games, max_edits=config.max_edits,
-                        strict_length=config.strict_length, observe_target=config.observe_target)
+                        strict_length=config.strict_length, observe_target=config.observe_target,
+                        pool_repeats=config.pool_repeats)
     if target is not None:
         target = jnp.asarray(target, jnp.float32)
         p = p.replace(target_low=target[0], target_high=target[1])

@@ -36,6 +36,9 @@ def _args(argv=None):
     ap.add_argument("--n-envs", type=int, default=None)
     ap.add_argument("--lr", type=float, default=None)
     ap.add_argument("--edit-cost", type=float, default=None, help="learner penalty per tick moved")
+    ap.add_argument("--ent-coef", type=float, default=None, help="entropy bonus coefficient")
+    ap.add_argument("--pool-repeats", action="store_true", default=None,
+                    help="re-measuring an unchanged skill pools its games (sharper win rate when holding)")
     ap.add_argument("--chunk", type=int, default=4, help="updates per jitted chunk (progress/checkpoint period)")
     ap.add_argument("--eval-episodes", type=int, default=8, help="episodes per target and method")
     ap.add_argument("--eval-gen-games", type=int, default=100, help="games per generator measurement in eval")
@@ -118,7 +121,8 @@ def evaluate(key, config, runner_params, labels, args) -> dict:
 
     Returns a dict of per-method ``generate`` outputs (numpy arrays pooled over groups)."""
     p = pcg.make_params(n_games=args.eval_gen_games, max_edits=config.max_edits,
-                        strict_length=config.strict_length, observe_target=config.observe_target)
+                        strict_length=config.strict_length, observe_target=config.observe_target,
+                        pool_repeats=config.pool_repeats)
     policy = method_policy(tuple(config.hidden), args.greedy)
     n_seeds = max(s for _, s in labels) + 1
     eps = max(1, args.eval_episodes // n_seeds)
@@ -162,7 +166,8 @@ def main(argv=None) -> None:
     args = _args(argv)
     t_start = time.perf_counter()
     config = get_config(args.preset, total_steps=args.total_steps, n_games=args.n_games, n_envs=args.n_envs,
-                        lr=args.lr, edit_cost=args.edit_cost)
+                        lr=args.lr, edit_cost=args.edit_cost, pool_repeats=args.pool_repeats,
+                        ent_coef=args.ent_coef)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps({**vars(args), "config": config.__dict__}, default=str, indent=1))

@@ -120,3 +120,26 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
             b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3", *variant])
     np.testing.assert_array_equal(b2.load_generated(out / "generated.npz")["PPO"]["win_rate"],
                                   gens["PPO"]["win_rate"])
+
+
+def test_b2_compare_splits_seeds_and_bootstraps():
+    from experiments import b2_compare
+
+    rng = np.random.default_rng(0)
+    # 2 saved parts, each: seed 0's episodes (targets 0.1, 0.5), then seed 1's; seed 1 misses by 0.3.
+    per_part_targets = np.array([0.1, 0.5, 0.1, 0.5])
+    targets = np.concatenate([per_part_targets, per_part_targets])
+    miss = np.tile([0.0, 0.0, 0.3, 0.3], 2)
+
+    def method(err):
+        n = len(targets)
+        return {"target": targets, "skill": rng.uniform(size=(n, 4)), "win_rate": targets + err,
+                "gen_win_rate": targets, "edits": np.full(n, 5), "reached": np.ones(n, bool)}
+
+    n = len(targets)
+    gens = {"PPO": method(miss), "PCG-HR": method(np.full(n, 0.05)), "PCG-RD": method(np.zeros(n))}
+    seeds = b2_compare.per_seed(gens, {"seeds": 2, "parts": 2})
+    assert [round(s["error"], 6) for s in seeds] == [0.0, 0.3]
+    boot = b2_compare.bootstrap(gens, resamples=20)
+    lo, hi = boot["error_diff_ci95"]
+    assert lo <= 0.15 - 0.05 <= hi  # PPO 0.15 on average against PCG-HR 0.05

@@ -18,20 +18,14 @@ from pathlib import Path
 import numpy as np
 
 from experiments.benchmark2 import load_generated
-from raidjax import pcg_metrics as pm
+from trainers.ppo_pcgrl_cli import summarize
 
 
 def scores(gens: dict) -> dict:
-    """``{method: {"error", "pc1_sd"}}``: mean error (episodes with >= 2 edits) and mean PC1 SD."""
-    skills = np.concatenate([g["skill"] for g in gens.values()])
-    errs = np.concatenate([np.abs(g["target"] - g["win_rate"]) for g in gens.values()])
-    groups = np.asarray([f"{m}|{t:.1f}" for m, g in gens.items() for t in g["target"]])
-    div = pm.diversity(skills, errs, groups)
-    out = {}
-    for m, g in gens.items():
-        pc1 = [v["pc1_sd"] for k, v in div.items() if k.startswith(m + "|") and np.isfinite(v["pc1_sd"])]
-        out[m] = {"error": pm.controllability(g)["err_mean"], "pc1_sd": float(np.mean(pc1)) if pc1 else float("nan")}
-    return out
+    """``{method: {"error", "pc1_sd"}}`` from ``ppo_pcgrl_cli.summarize``: mean error (episodes
+    with >= 2 edits) and mean PC1 SD (normalisation and PCA over all methods' kept skills)."""
+    return {m: {"error": v["controllability"]["err_mean"], "pc1_sd": v["pc1_sd_mean"]}
+            for m, v in summarize(gens).items()}
 
 
 def per_seed(gens: dict, config: dict) -> list[dict]:

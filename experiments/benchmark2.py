@@ -288,20 +288,13 @@ def main(argv=None) -> dict:
 
     a = _parse(argv)
     scale = SCALES[a.scale]
-    if a.edit_cost is not None:
-        scale = dataclasses.replace(scale, ppo={**scale.ppo, "edit_cost": a.edit_cost})
-    if a.pool_repeats:
-        scale = dataclasses.replace(scale, ppo={**scale.ppo, "pool_repeats": True})
-    if a.ent_coef is not None:
-        scale = dataclasses.replace(scale, ppo={**scale.ppo, "ent_coef": a.ent_coef})
-    if a.total_steps is not None:
-        scale = dataclasses.replace(scale, ppo={**scale.ppo, "total_steps": a.total_steps})
-    if a.seeds is not None:
-        scale = dataclasses.replace(scale, seeds=a.seeds)
-    if a.episodes is not None:
-        scale = dataclasses.replace(scale, episodes=a.episodes)
+    ppo = {"edit_cost": a.edit_cost, "ent_coef": a.ent_coef, "total_steps": a.total_steps,
+           "pool_repeats": a.pool_repeats or None}
+    scale = dataclasses.replace(scale, ppo={**scale.ppo, **{k: v for k, v in ppo.items() if v is not None}},
+                                **{k: v for k, v in (("seeds", a.seeds), ("episodes", a.episodes)) if v is not None})
     if scale.episodes % scale.parts or (scale.episodes // scale.parts) % scale.seeds:
-        raise ValueError("episodes must split evenly into parts and, per part, over the PPO seeds")
+        raise ValueError(f"episodes: {scale.episodes} per target must split evenly into {scale.parts} parts "
+                         f"and, per part, over {scale.seeds} PPO seeds")
     config = {"benchmark": 2, "scale": a.scale, "seed": a.seed, **dataclasses.asdict(scale),
               "ppo_config": dataclasses.asdict(ppo_config(scale)), "targets": list(pm.TARGETS)}
     run = RunFolder(a.out, config)

@@ -25,11 +25,6 @@ from raidjax import pcg
 from raidjax import pcg_metrics as pm
 
 
-def heuristic(k, key, obs, state, params):
-    """PCG-HR (``k`` unused). Returns ``int32[4]``."""
-    return pcg.heuristic_policy(None, key, obs, state, params)
-
-
 def holding_heuristic(k, key, obs, state, params):
     """PCG-HR that makes no edit while ``|w - t| < band + k * SE``. Returns ``int32[4]``."""
     se = jnp.sqrt(jnp.maximum(state.win_rate * (1 - state.win_rate), 0.01) / state.games)
@@ -45,7 +40,7 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--gen-games", type=int, default=100)
     a = ap.parse_args(argv)
     rows = []
-    variants = ((False, "PCG-HR", heuristic, 0.0),
+    variants = ((False, "PCG-HR", pcg.heuristic_policy, 0.0),  # ignores its policy_params
                 (False, "PCG-HR + hold k=1", holding_heuristic, 1.0),
                 (False, "PCG-HR + hold k=2", holding_heuristic, 2.0),
                 (True, "PCG-HR + hold k=1", holding_heuristic, 1.0))

@@ -52,10 +52,6 @@ def atomic_write(path: str | Path, data: str | bytes) -> Path:
     return path
 
 
-
-
-
-
 class RunFolder:
     """The run folder ``out`` of one pipeline at one scale.
 

@@ -49,10 +49,6 @@ def parse_args(argv=None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
-
-
-
-
 def _tensorboard_writer(out: Path):
     """A ``tensorboardX.SummaryWriter`` on ``DIR/tensorboard``, or ``None`` if not installed."""
     try:

@@ -18,7 +18,9 @@ edit and reports ``info["valid"] = False`` (the learner masks that transition ou
 
 ``pool_repeats`` (opt-in, beyond SPEC §10): re-measuring an unchanged skill pools its games, so
 a generator that holds a skill gets an ever sharper win rate (the 100-game SE, ≈ 0.05, is wider
-than the ±0.02 band).
+than the ±0.02 band). ``observe_start`` (opt-in) shows the generator how far it has moved from
+the episode's random start skill, which a learner can be charged for (``displacement``) to keep
+the variety of the random starts in its output.
 
 Shapes are for one episode; ``jax.vmap`` runs many generator episodes in parallel, each with
 its own batch of ``n_games`` playtests.
@@ -78,6 +80,8 @@ class PCGParams:
             the same skill, so holding a skill sharpens its win rate; the observation then also
             carries ``sqrt(100 / games)``, proportional to the win rate's standard error (static;
             off = SPEC §10).
+        observe_start: append the displacement from the episode's start skill, in ticks
+            (``(skill - start) / tick()``, 4 values), to the observation (static; off = SPEC §10).
     """
 
     game: Params
@@ -89,6 +93,7 @@ class PCGParams:
     strict_length: bool = struct.field(pytree_node=False, default=False)
     observe_target: bool = struct.field(pytree_node=False, default=True)
     pool_repeats: bool = struct.field(pytree_node=False, default=False)
+    observe_start: bool = struct.field(pytree_node=False, default=False)
 
 
 @struct.dataclass
@@ -103,6 +108,7 @@ class PCGState:
         done: ``bool[]`` the episode has ended (``step_autoreset`` resets on the next call).
         reached: ``bool[]`` some measurement after an edit fell within the band.
         games: ``float32[]`` games behind ``win_rate`` (``n_games``, more when pooled).
+        start: ``float32[4]`` the skill the episode started from.
     """
 
     skill: jax.Array
@@ -112,6 +118,7 @@ class PCGState:
     done: jax.Array
     reached: jax.Array
     games: jax.Array
+    start: jax.Array
 
 
 _BASE: list[Params] = []
@@ -128,12 +135,14 @@ def base_game() -> Params:
 def make_params(
     *, target: float | tuple[float, float] = (0.1, 0.7), n_games: int = 100, max_edits: int = 40,
     band: float = 0.02, strict_length: bool = False, observe_target: bool = True, pool_repeats: bool = False,
+    observe_start: bool = False,
 ) -> PCGParams:
     """Build ``PCGParams`` on the host.
 
     Args:
         target: a fixed target win rate, or ``(low, high)`` to draw one uniformly per episode.
-        n_games, max_edits, band, strict_length, observe_target, pool_repeats: see ``PCGParams``.
+        n_games, max_edits, band, strict_length, observe_target, pool_repeats, observe_start: see
+            ``PCGParams``.
 
     Returns:
         ``PCGParams``.
@@ -146,7 +155,7 @@ def make_params(
     f = lambda x: np.float32(x)
     return PCGParams(game=base_game(), target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
                      max_edits=max_edits, strict_length=strict_length, observe_target=observe_target,
-                     pool_repeats=pool_repeats)
+                     pool_repeats=pool_repeats, observe_start=observe_start)
 
 
 def skill_params(game: Params, skill: jax.Array) -> Params:
@@ -188,19 +197,30 @@ def in_band(params: PCGParams, target: jax.Array, w: jax.Array) -> jax.Array:
 
 def observe(state: PCGState, params: PCGParams) -> jax.Array:
     """Observation: the 4 parameters min-max scaled to [0, 1], then target and last win rate when
-    ``params.observe_target``, then ``sqrt(100 / games)`` when ``params.pool_repeats``:
-    ``float32[obs_size(params)]`` (4 to 7)."""
+    ``params.observe_target``, then ``sqrt(100 / games)`` when ``params.pool_repeats``, then the
+    displacement from the start skill in ticks when ``params.observe_start``:
+    ``float32[obs_size(params)]`` (4 to 11)."""
     x = (state.skill - low()) / (high() - low())
     if params.observe_target:
         x = jnp.concatenate([x, jnp.stack([state.target, state.win_rate])])
     if params.pool_repeats:
         x = jnp.concatenate([x, jnp.sqrt(100.0 / state.games)[None]])
+    if params.observe_start:
+        x = jnp.concatenate([x, (state.skill - state.start) / tick()])
     return x.astype(jnp.float32)
 
 
 def obs_size(params: PCGParams) -> int:
-    """Length of the observation vector (4 to 7)."""
-    return N_PARAMS + 2 * int(params.observe_target) + int(params.pool_repeats)
+    """Length of the observation vector (4 to 11)."""
+    return N_PARAMS * (1 + int(params.observe_start)) + 2 * int(params.observe_target) + int(params.pool_repeats)
+
+
+def displacement(skill: jax.Array, start: jax.Array) -> jax.Array:
+    """Squared distance from the start skill in ticks, ``sum(((skill - start) / tick())**2)``:
+    ``float32[...]`` for ``float32[..., 4]`` inputs. Squared, so that moving several parameters a
+    little costs less than moving one a lot (the generator's output then varies in every
+    parameter, as the random starts do)."""
+    return jnp.sum(((skill - start) / tick()) ** 2, -1)
 
 
 def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None) -> tuple[jax.Array, jax.Array]:
@@ -226,7 +246,7 @@ def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) ->
     skill, target = _fresh(k_new, params, target)
     w = measure(k_play, params, skill)
     state = PCGState(skill=skill, target=target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
-                     reached=jnp.bool_(False), games=jnp.float32(params.n_games))
+                     reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill)
     return observe(state, params), state
 
 
@@ -249,7 +269,7 @@ def advance(state: PCGState, skill: jax.Array, w: jax.Array, params: PCGParams) 
         done = done | close
     reward = reward_fn(state.target, state.win_rate, w)
     new = PCGState(skill=skill, target=state.target, win_rate=w, edits=edits, done=done,
-                   reached=state.reached | close, games=games)
+                   reached=state.reached | close, games=games, start=state.start)
     return new, reward
 
 
@@ -291,7 +311,7 @@ def step_autoreset(key: jax.Array, state: PCGState, action: jax.Array, params: P
     w = measure(k_play, params, skill)
     edited, reward = advance(state, skill, w, params)
     started = PCGState(skill=skill, target=fresh_target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
-                       reached=jnp.bool_(False), games=jnp.float32(params.n_games))
+                       reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill)
     new = jax.tree.map(lambda a, b: jnp.where(state.done, a, b), started, edited)
     reward = jnp.where(state.done, 0.0, reward)
     info = {"win_rate": new.win_rate, "edits": new.edits, "reached": new.reached, "valid": ~state.done,
@@ -320,5 +340,5 @@ def heuristic_policy(policy_params, key: jax.Array, obs: jax.Array, state: PCGSt
 __all__ = [
     "PCGParams", "PCGState", "make_params", "reset", "step", "step_autoreset", "observe", "obs_size",
     "apply_action", "advance", "reward_fn", "measure", "play_outcomes", "skill_params", "random_policy",
-    "heuristic_policy", "tick", "low", "high", "PARAM_NAMES", "EASIER",
+    "heuristic_policy", "tick", "low", "high", "PARAM_NAMES", "EASIER", "displacement",
 ]

@@ -17,7 +17,7 @@ TICK = (HIGH - LOW) / 6
 def _state(skill=(10.0, 0.55, 1.0, 0.75), target=0.5, w=0.3, edits=0, games=4):
     return pcg.PCGState(skill=jnp.asarray(skill, jnp.float32), target=jnp.float32(target), win_rate=jnp.float32(w),
                         edits=jnp.int32(edits), done=jnp.bool_(False), reached=jnp.bool_(False),
-                        games=jnp.float32(games))
+                        games=jnp.float32(games), start=jnp.asarray(skill, jnp.float32))
 
 
 def test_ticks_and_clipping():
@@ -98,6 +98,43 @@ def test_observation_modes():
     o = pcg.observe(st, pcg.make_params(n_games=4))
     np.testing.assert_allclose(np.asarray(o), [0, 0, 0, 0, 0.4, 0.2], atol=1e-6)
     assert pcg.observe(st, pcg.make_params(n_games=4, observe_target=False)).shape == (4,)
+
+
+def test_start_skill_displacement_and_its_observation():
+    p = pcg.make_params(n_games=2, max_edits=2, observe_start=True)
+    _, st = pcg.reset(jax.random.key(0), p)
+    start = np.asarray(st.skill)
+    np.testing.assert_array_equal(np.asarray(st.start), start)
+    act = jnp.asarray([4, 0, 2, 3], jnp.int32)  # +1, -1, 0, +1/2 ticks
+    o, st1, _, _, _ = pcg.step(jax.random.key(1), st, act, p)
+    np.testing.assert_array_equal(np.asarray(st1.start), start)  # the start stays through edits
+    moved = (np.asarray(st1.skill) - start) / np.asarray(pcg.tick())  # clipping may shorten a move
+    assert o.shape == (pcg.obs_size(p),) == (10,)
+    np.testing.assert_allclose(np.asarray(o[-4:]), moved, atol=1e-5)
+    assert float(pcg.displacement(st1.skill, st1.start)) == pytest.approx(float((moved ** 2).sum()), rel=1e-5)
+    assert float(pcg.displacement(jnp.asarray(pcg.LOW) + pcg.tick() * jnp.asarray([2.0, 0, 0, 1]),
+                                  jnp.asarray(pcg.LOW))) == pytest.approx(5.0, rel=1e-5)  # 2^2 + 1^2 ticks^2
+    ended = st1.replace(done=jnp.bool_(True))
+    _, fresh, _, _, info = pcg.step_autoreset(jax.random.key(2), ended, act, p)
+    assert not bool(info["valid"])
+    np.testing.assert_array_equal(np.asarray(fresh.start), np.asarray(fresh.skill))  # a reset starts anew
+
+
+def test_edit_penalty_telescopes_to_final_displacement():
+    from trainers.ppo_pcgrl import Config, edit_penalty
+
+    cfg = Config(edit_cost=0.5, anchor_cost=2.0)
+    st = _state(skill=(10.0, 0.55, 1.0, 0.75))
+    total, ticks = 0.0, 0.0
+    for a in ([4, 2, 2, 2], [4, 1, 2, 2], [0, 2, 3, 2], [2, 2, 2, 2]):  # out, out, back: oscillation is free
+        a = jnp.asarray(a, jnp.int32)
+        new = st.replace(skill=pcg.apply_action(st.skill, a))
+        total += float(edit_penalty(cfg, a, st, new))
+        ticks += float(np.abs(np.asarray(pcg.TICK_FRACTIONS)[np.asarray(a)]).sum())
+        st = new
+    final = float(pcg.displacement(st.skill, st.start))
+    assert final == pytest.approx(1.0 + 0.25 + 0.25, rel=1e-4)  # range +1 tick, cool -1/2, cast +1/2
+    assert total == pytest.approx(0.5 * ticks + 2.0 * final, rel=1e-4)
 
 
 def test_pool_repeats_pools_only_an_unchanged_skill():
@@ -182,14 +219,14 @@ def test_diversity_on_hand_set():
     assert y == {"yield": 0.5, "edits_mean": 22.0, "edits_sd": 18.0}
 
 
-@pytest.mark.parametrize("pool", [False, True])
-def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool):
+@pytest.mark.parametrize("pool,anchor", [(False, 0.0), (True, 1.0)])
+def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor):
     import orbax.checkpoint as ocp
 
     from trainers.ppo_pcgrl import Config, make_policy, make_train
 
     cfg = Config(n_envs=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=(8,), n_games=2,
-                 max_edits=2, pool_repeats=pool)
+                 max_edits=2, pool_repeats=pool, anchor_cost=anchor)
     train = make_train(cfg)
     runner, metrics = jax.jit(train)(jax.random.key(0))
     assert metrics["reward"].shape == (2,) and np.isfinite(np.asarray(metrics["pg_loss"])).all()
@@ -203,8 +240,8 @@ def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool):
     for a, b in zip(jax.tree.leaves(runner), jax.tree.leaves(back), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     policy = make_policy((8,), True)
-    obs = pcg.observe(_state(), pcg.make_params(n_games=2, pool_repeats=pool))
-    assert obs.shape == (6 + pool,)
+    obs = pcg.observe(_state(), pcg.make_params(n_games=2, pool_repeats=pool, observe_start=cfg.observe_start))
+    assert obs.shape == (6 + pool + 4 * (anchor > 0),)
     a = policy(back["params"], jax.random.key(1), obs, None, None)
     assert a.shape == (4,) and a.dtype == jnp.int32
 

@@ -52,10 +52,18 @@ class Config:
     strict_length: bool = False
     max_edits: int = 40
     pool_repeats: bool = False  # env: re-measuring an unchanged skill pools its games (pcg.PCGParams)
+    # learner-side diversity term: penalty per unit change of pcg.displacement (squared ticks from the
+    # episode's start skill; it telescopes to -anchor_cost * displacement of the final skill). > 0 also
+    # turns on the env's observe_start, so the policy sees its displacement. 0 = off.
+    anchor_cost: float = 0.0
 
     @property
     def n_updates(self) -> int:
         return max(1, self.total_steps // (self.n_envs * self.n_steps))
+
+    @property
+    def observe_start(self) -> bool:
+        return self.anchor_cost > 0
 
 
 PRESETS = {
@@ -102,11 +110,22 @@ def env_params(config: Config, target=None) -> pcg.PCGParams:
     """``PCGParams`` for training; ``target`` (``float32[2]`` low/high, traced ok) overrides the config."""
     p = pcg.make_params(target=tuple(config.target), n_games=config.n_games, max_edits=config.max_edits,
                         strict_length=config.strict_length, observe_target=config.observe_target,
-                        pool_repeats=config.pool_repeats)
+                        pool_repeats=config.pool_repeats, observe_start=config.observe_start)
     if target is not None:
         target = jnp.asarray(target, jnp.float32)
         p = p.replace(target_low=target[0], target_high=target[1])
     return p
+
+
+def edit_penalty(config: Config, action: jax.Array, old: pcg.PCGState, new: pcg.PCGState) -> jax.Array:
+    """Learner-side cost of one edit in env reward units: ``edit_cost`` per tick of ``action``
+    (``int32[..., 4]``) plus ``anchor_cost`` times the change of ``pcg.displacement`` from ``old``
+    to ``new`` (``PCGState`` with matching batch shape). Over an episode the anchor part sums to
+    ``anchor_cost * displacement(final skill)``. Returns ``float32[...]`` (meaningless on reset
+    transitions, which the learner masks)."""
+    ticks = jnp.abs(jnp.asarray(pcg.TICK_FRACTIONS)[action]).sum(-1)
+    moved = pcg.displacement(new.skill, new.start) - pcg.displacement(old.skill, old.start)
+    return config.edit_cost * ticks + config.anchor_cost * moved
 
 
 def _logp_entropy(logits, action):
@@ -161,8 +180,7 @@ def make_train(config: Config):
             logp, _ = _logp_entropy(logits, action)
             obs2, st2, r, done, info = jax.vmap(lambda kk, s, a: pcg.step_autoreset(kk, s, a, p))(
                 jax.random.split(ke, config.n_envs), st, action)
-            ticks = jnp.abs(jnp.asarray(pcg.TICK_FRACTIONS)[action]).sum(-1)
-            shaped = (r - config.edit_cost * ticks * info["valid"]) * config.reward_scale
+            shaped = (r - edit_penalty(config, action, st, st2) * info["valid"]) * config.reward_scale
             tr = Transition(obs, action, logp, value, shaped, done, info["valid"])
             ended = done & info["valid"]
             return (obs2, st2), (tr, ended, info["final_error"], info["edits"], info["reached"], r)

@@ -80,8 +80,9 @@ class PCGParams:
             the same skill, so holding a skill sharpens its win rate; the observation then also
             carries ``sqrt(100 / games)``, proportional to the win rate's standard error (static;
             off = SPEC §10).
-        observe_start: append the displacement from the episode's start skill, in ticks
-            (``(skill - start) / tick()``, 4 values), to the observation (static; off = SPEC §10).
+        observe_start: append the displacement from the episode's start skill, min-max scaled
+            (``(skill - start) / (high - low)``, 4 values in [-1, 1]), to the observation (static;
+            off = SPEC §10).
     """
 
     game: Params
@@ -198,7 +199,8 @@ def in_band(params: PCGParams, target: jax.Array, w: jax.Array) -> jax.Array:
 def observe(state: PCGState, params: PCGParams) -> jax.Array:
     """Observation: the 4 parameters min-max scaled to [0, 1], then target and last win rate when
     ``params.observe_target``, then ``sqrt(100 / games)`` when ``params.pool_repeats``, then the
-    displacement from the start skill in ticks when ``params.observe_start``:
+    displacement from the start skill (scaled like the parameters, in [-1, 1]) when
+    ``params.observe_start``:
     ``float32[obs_size(params)]`` (4 to 11)."""
     x = (state.skill - low()) / (high() - low())
     if params.observe_target:
@@ -206,7 +208,8 @@ def observe(state: PCGState, params: PCGParams) -> jax.Array:
     if params.pool_repeats:
         x = jnp.concatenate([x, jnp.sqrt(100.0 / state.games)[None]])
     if params.observe_start:
-        x = jnp.concatenate([x, (state.skill - state.start) / tick()])
+        # scaled like the parameters: in ticks (up to ±6) it saturated the tanh layers and PPO stalled
+        x = jnp.concatenate([x, (state.skill - state.start) / (high() - low())])
     return x.astype(jnp.float32)
 
 

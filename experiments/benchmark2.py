@@ -17,8 +17,8 @@ one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
 
 Variants beyond the paper's protocol (each recorded in ``config.json``): ``--pool-repeats`` (the
 generation environment pools the games of an unchanged skill, for all three generators),
-``--edit-cost``, ``--anchor-cost``, ``--ent-coef`` and ``--total-steps`` (PPO learner), ``--seeds``,
-``--episodes``.
+``--edit-cost``, ``--anchor-cost``, ``--edit-preferences``, ``--ent-coef`` and ``--total-steps``
+(PPO learner), ``--seeds``, ``--episodes``.
 
 The last stdout line is the JSON summary (also ``summary.json``).
 """
@@ -115,6 +115,8 @@ def _parse(argv=None) -> argparse.Namespace:
                     "default: the scale's, 0 = the paper's reward)")
     ap.add_argument("--anchor-cost", type=float, help="PPO learner penalty per squared tick of displacement "
                     "from the episode's start skill (a diversity term; default 0 = off)")
+    ap.add_argument("--edit-preferences", action="store_true", help="PPO learner: random per-episode edit "
+                    "preferences (observed) weight the edit cost per parameter (a diversity term)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
     ap.add_argument("--total-steps", type=int, help="PPO generator steps per group (default: the scale's)")
     ap.add_argument("--seeds", type=int, help="PPO seeds trained together (default: the scale's)")
@@ -291,7 +293,8 @@ def main(argv=None) -> dict:
 
     a = _parse(argv)
     scale = SCALES[a.scale]
-    ppo = {"edit_cost": a.edit_cost, "anchor_cost": a.anchor_cost, "ent_coef": a.ent_coef, "total_steps": a.total_steps,
+    ppo = {"edit_cost": a.edit_cost, "anchor_cost": a.anchor_cost, "edit_preferences": a.edit_preferences or None,
+           "ent_coef": a.ent_coef, "total_steps": a.total_steps,
            "pool_repeats": a.pool_repeats or None}
     scale = dataclasses.replace(scale, ppo={**scale.ppo, **{k: v for k, v in ppo.items() if v is not None}},
                                 **{k: v for k, v in (("seeds", a.seeds), ("episodes", a.episodes)) if v is not None})

@@ -20,7 +20,10 @@ edit and reports ``info["valid"] = False`` (the learner masks that transition ou
 a generator that holds a skill gets an ever sharper win rate (the 100-game SE, ≈ 0.05, is wider
 than the ±0.02 band). ``observe_start`` (opt-in) shows the generator how far it has moved from
 the episode's random start skill, which a learner can be charged for (``displacement``) to keep
-the variety of the random starts in its output.
+the variety of the random starts in its output. ``edit_preferences`` (opt-in) draws, per
+episode, how much the designer minds each parameter being edited (``PCGState.preferences``,
+mean 1, observed); a learner charged by them learns to use whichever parameters are cheap, so
+that varying the preferences varies the generated skills.
 
 Shapes are for one episode; ``jax.vmap`` runs many generator episodes in parallel, each with
 its own batch of ``n_games`` playtests.
@@ -83,6 +86,9 @@ class PCGParams:
         observe_start: append the displacement from the episode's start skill, min-max scaled
             (``(skill - start) / (high - low)``, 4 values in [-1, 1]), to the observation (static;
             off = SPEC §10).
+        edit_preferences: draw per-parameter edit preferences per episode, ``4 * softmax(1.5 z)``
+            with ``z`` standard normal (mean 1), and append them divided by 4 to the observation
+            (static; off = all ones, not observed).
     """
 
     game: Params
@@ -95,6 +101,7 @@ class PCGParams:
     observe_target: bool = struct.field(pytree_node=False, default=True)
     pool_repeats: bool = struct.field(pytree_node=False, default=False)
     observe_start: bool = struct.field(pytree_node=False, default=False)
+    edit_preferences: bool = struct.field(pytree_node=False, default=False)
 
 
 @struct.dataclass
@@ -110,6 +117,8 @@ class PCGState:
         reached: ``bool[]`` some measurement after an edit fell within the band.
         games: ``float32[]`` games behind ``win_rate`` (``n_games``, more when pooled).
         start: ``float32[4]`` the skill the episode started from.
+        preferences: ``float32[4]`` per-parameter edit weights of the episode (ones unless
+            ``edit_preferences``); the environment only observes them, a learner may be charged by them.
     """
 
     skill: jax.Array
@@ -120,6 +129,7 @@ class PCGState:
     reached: jax.Array
     games: jax.Array
     start: jax.Array
+    preferences: jax.Array
 
 
 _BASE: list[Params] = []
@@ -136,14 +146,14 @@ def base_game() -> Params:
 def make_params(
     *, target: float | tuple[float, float] = (0.1, 0.7), n_games: int = 100, max_edits: int = 40,
     band: float = 0.02, strict_length: bool = False, observe_target: bool = True, pool_repeats: bool = False,
-    observe_start: bool = False,
+    observe_start: bool = False, edit_preferences: bool = False,
 ) -> PCGParams:
     """Build ``PCGParams`` on the host.
 
     Args:
         target: a fixed target win rate, or ``(low, high)`` to draw one uniformly per episode.
-        n_games, max_edits, band, strict_length, observe_target, pool_repeats, observe_start: see
-            ``PCGParams``.
+        n_games, max_edits, band, strict_length, observe_target, pool_repeats, observe_start,
+            edit_preferences: see ``PCGParams``.
 
     Returns:
         ``PCGParams``.
@@ -156,7 +166,7 @@ def make_params(
     f = lambda x: np.float32(x)
     return PCGParams(game=base_game(), target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
                      max_edits=max_edits, strict_length=strict_length, observe_target=observe_target,
-                     pool_repeats=pool_repeats, observe_start=observe_start)
+                     pool_repeats=pool_repeats, observe_start=observe_start, edit_preferences=edit_preferences)
 
 
 def skill_params(game: Params, skill: jax.Array) -> Params:
@@ -200,8 +210,8 @@ def observe(state: PCGState, params: PCGParams) -> jax.Array:
     """Observation: the 4 parameters min-max scaled to [0, 1], then target and last win rate when
     ``params.observe_target``, then ``sqrt(100 / games)`` when ``params.pool_repeats``, then the
     displacement from the start skill (scaled like the parameters, in [-1, 1]) when
-    ``params.observe_start``:
-    ``float32[obs_size(params)]`` (4 to 11)."""
+    ``params.observe_start``, then the edit preferences / 4 when ``params.edit_preferences``:
+    ``float32[obs_size(params)]`` (4 to 15)."""
     x = (state.skill - low()) / (high() - low())
     if params.observe_target:
         x = jnp.concatenate([x, jnp.stack([state.target, state.win_rate])])
@@ -210,12 +220,15 @@ def observe(state: PCGState, params: PCGParams) -> jax.Array:
     if params.observe_start:
         # scaled like the parameters: in ticks (up to ±6) it saturated the tanh layers and PPO stalled
         x = jnp.concatenate([x, (state.skill - state.start) / (high() - low())])
+    if params.edit_preferences:
+        x = jnp.concatenate([x, state.preferences / N_PARAMS])
     return x.astype(jnp.float32)
 
 
 def obs_size(params: PCGParams) -> int:
-    """Length of the observation vector (4 to 11)."""
-    return N_PARAMS * (1 + int(params.observe_start)) + 2 * int(params.observe_target) + int(params.pool_repeats)
+    """Length of the observation vector (4 to 15)."""
+    return (N_PARAMS * (1 + int(params.observe_start) + int(params.edit_preferences))
+            + 2 * int(params.observe_target) + int(params.pool_repeats))
 
 
 def displacement(skill: jax.Array, start: jax.Array) -> jax.Array:
@@ -226,12 +239,16 @@ def displacement(skill: jax.Array, start: jax.Array) -> jax.Array:
     return jnp.sum(((skill - start) / tick()) ** 2, -1)
 
 
-def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None) -> tuple[jax.Array, jax.Array]:
+def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None):
     k_skill, k_target = jax.random.split(key)
     skill = jax.random.uniform(k_skill, (N_PARAMS,), minval=low(), maxval=high())
     if target is None:
         target = jax.random.uniform(k_target, (), minval=params.target_low, maxval=params.target_high)
-    return skill, jnp.asarray(target, jnp.float32)
+    prefs = jnp.ones((N_PARAMS,), jnp.float32)
+    if params.edit_preferences:  # own key stream: skills and targets stay those drawn without it
+        z = jax.random.normal(jax.random.fold_in(key, 7), (N_PARAMS,))
+        prefs = N_PARAMS * jax.nn.softmax(1.5 * z)
+    return skill, jnp.asarray(target, jnp.float32), prefs
 
 
 def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) -> tuple[jax.Array, PCGState]:
@@ -246,10 +263,10 @@ def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) ->
         ``(obs, state)``: ``float32[obs_size]`` and ``PCGState``.
     """
     k_new, k_play = jax.random.split(key)
-    skill, target = _fresh(k_new, params, target)
+    skill, target, prefs = _fresh(k_new, params, target)
     w = measure(k_play, params, skill)
     state = PCGState(skill=skill, target=target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
-                     reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill)
+                     reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill, preferences=prefs)
     return observe(state, params), state
 
 
@@ -272,7 +289,7 @@ def advance(state: PCGState, skill: jax.Array, w: jax.Array, params: PCGParams) 
         done = done | close
     reward = reward_fn(state.target, state.win_rate, w)
     new = PCGState(skill=skill, target=state.target, win_rate=w, edits=edits, done=done,
-                   reached=state.reached | close, games=games, start=state.start)
+                   reached=state.reached | close, games=games, start=state.start, preferences=state.preferences)
     return new, reward
 
 
@@ -309,12 +326,13 @@ def step_autoreset(key: jax.Array, state: PCGState, action: jax.Array, params: P
         has ``info["valid"] = False``. ``info["final_error"]`` is ``|t - w|`` (meaningful where done).
     """
     k_new, k_play = jax.random.split(key)
-    fresh_skill, fresh_target = _fresh(k_new, params, None)
+    fresh_skill, fresh_target, fresh_prefs = _fresh(k_new, params, None)
     skill = jnp.where(state.done, fresh_skill, apply_action(state.skill, action))
     w = measure(k_play, params, skill)
     edited, reward = advance(state, skill, w, params)
     started = PCGState(skill=skill, target=fresh_target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
-                       reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill)
+                       reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill,
+                       preferences=fresh_prefs)
     new = jax.tree.map(lambda a, b: jnp.where(state.done, a, b), started, edited)
     reward = jnp.where(state.done, 0.0, reward)
     info = {"win_rate": new.win_rate, "edits": new.edits, "reached": new.reached, "valid": ~state.done,

@@ -17,7 +17,8 @@ TICK = (HIGH - LOW) / 6
 def _state(skill=(10.0, 0.55, 1.0, 0.75), target=0.5, w=0.3, edits=0, games=4):
     return pcg.PCGState(skill=jnp.asarray(skill, jnp.float32), target=jnp.float32(target), win_rate=jnp.float32(w),
                         edits=jnp.int32(edits), done=jnp.bool_(False), reached=jnp.bool_(False),
-                        games=jnp.float32(games), start=jnp.asarray(skill, jnp.float32))
+                        games=jnp.float32(games), start=jnp.asarray(skill, jnp.float32),
+                        preferences=jnp.ones(4, jnp.float32))
 
 
 def test_ticks_and_clipping():
@@ -137,6 +138,33 @@ def test_edit_penalty_telescopes_to_final_displacement():
     assert total == pytest.approx(0.5 * ticks + 2.0 * final, rel=1e-4)
 
 
+def test_edit_preferences_drawn_observed_and_renewed():
+    on, off = pcg.make_params(n_games=2, edit_preferences=True), pcg.make_params(n_games=2)
+    o, st = pcg.reset(jax.random.key(3), on)
+    _, st_off = pcg.reset(jax.random.key(3), off)
+    prefs = np.asarray(st.preferences)
+    assert (prefs > 0).all() and prefs.sum() == pytest.approx(4.0, rel=1e-5) and prefs.std() > 0.05
+    np.testing.assert_array_equal(np.asarray(st_off.preferences), np.ones(4))  # off: all ones
+    np.testing.assert_array_equal(np.asarray(st.skill), np.asarray(st_off.skill))  # same skills and targets
+    assert float(st.target) == float(st_off.target)
+    assert o.shape == (pcg.obs_size(on),) == (10,) and pcg.obs_size(off) == 6
+    np.testing.assert_allclose(np.asarray(o[-4:]), prefs / 4, rtol=1e-6)
+    _, st1, _, _, _ = pcg.step(jax.random.key(4), st, jnp.full(4, 4, jnp.int32), on)
+    np.testing.assert_array_equal(np.asarray(st1.preferences), prefs)  # kept through edits
+    _, fresh, _, _, _ = pcg.step_autoreset(jax.random.key(5), st1.replace(done=jnp.bool_(True)),
+                                           jnp.full(4, 4, jnp.int32), on)
+    assert not np.allclose(np.asarray(fresh.preferences), prefs)  # a new episode draws new ones
+
+
+def test_edit_penalty_weights_ticks_by_preferences():
+    from trainers.ppo_pcgrl import Config, edit_penalty
+
+    st = _state().replace(preferences=jnp.asarray([2.0, 1.0, 0.5, 0.5]))
+    a = jnp.asarray([4, 1, 2, 0], jnp.int32)  # +1, -1/2, 0, -1 ticks
+    new = st.replace(skill=pcg.apply_action(st.skill, a))
+    assert float(edit_penalty(Config(edit_cost=3.0), a, st, new)) == pytest.approx(3.0 * (2.0 + 0.5 + 0.5))
+
+
 def test_pool_repeats_pools_only_an_unchanged_skill():
     p = pcg.make_params(n_games=4, pool_repeats=True, strict_length=True)
     st = _state(target=0.5, w=0.25, games=4)
@@ -219,14 +247,14 @@ def test_diversity_on_hand_set():
     assert y == {"yield": 0.5, "edits_mean": 22.0, "edits_sd": 18.0}
 
 
-@pytest.mark.parametrize("pool,anchor", [(False, 0.0), (True, 1.0)])
-def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor):
+@pytest.mark.parametrize("pool,anchor,prefs", [(False, 0.0, False), (True, 1.0, True)])
+def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor, prefs):
     import orbax.checkpoint as ocp
 
     from trainers.ppo_pcgrl import Config, make_policy, make_train
 
     cfg = Config(n_envs=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=(8,), n_games=2,
-                 max_edits=2, pool_repeats=pool, anchor_cost=anchor)
+                 max_edits=2, pool_repeats=pool, anchor_cost=anchor, edit_preferences=prefs, edit_cost=1.0)
     train = make_train(cfg)
     runner, metrics = jax.jit(train)(jax.random.key(0))
     assert metrics["reward"].shape == (2,) and np.isfinite(np.asarray(metrics["pg_loss"])).all()
@@ -240,8 +268,9 @@ def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor):
     for a, b in zip(jax.tree.leaves(runner), jax.tree.leaves(back), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     policy = make_policy((8,), True)
-    obs = pcg.observe(_state(), pcg.make_params(n_games=2, pool_repeats=pool, observe_start=cfg.observe_start))
-    assert obs.shape == (6 + pool + 4 * (anchor > 0),)
+    obs = pcg.observe(_state(), pcg.make_params(n_games=2, pool_repeats=pool, observe_start=cfg.observe_start,
+                                                 edit_preferences=prefs))
+    assert obs.shape == (6 + pool + 4 * (anchor > 0) + 4 * prefs,)
     a = policy(back["params"], jax.random.key(1), obs, None, None)
     assert a.shape == (4,) and a.dtype == jnp.int32
 

@@ -56,6 +56,10 @@ class Config:
     # episode's start skill; it telescopes to -anchor_cost * displacement of the final skill). > 0 also
     # turns on the env's observe_start, so the policy sees its displacement. 0 = off.
     anchor_cost: float = 0.0
+    # env: per-episode random edit preferences (pcg.PCGParams.edit_preferences), observed; edit_cost
+    # is then charged per tick times the moved parameter's preference, so the policy must learn to
+    # reach the target with whichever parameters an episode makes cheap.
+    edit_preferences: bool = False
 
     @property
     def n_updates(self) -> int:
@@ -110,7 +114,8 @@ def env_params(config: Config, target=None) -> pcg.PCGParams:
     """``PCGParams`` for training; ``target`` (``float32[2]`` low/high, traced ok) overrides the config."""
     p = pcg.make_params(target=tuple(config.target), n_games=config.n_games, max_edits=config.max_edits,
                         strict_length=config.strict_length, observe_target=config.observe_target,
-                        pool_repeats=config.pool_repeats, observe_start=config.observe_start)
+                        pool_repeats=config.pool_repeats, observe_start=config.observe_start,
+                        edit_preferences=config.edit_preferences)
     if target is not None:
         target = jnp.asarray(target, jnp.float32)
         p = p.replace(target_low=target[0], target_high=target[1])
@@ -119,11 +124,12 @@ def env_params(config: Config, target=None) -> pcg.PCGParams:
 
 def edit_penalty(config: Config, action: jax.Array, old: pcg.PCGState, new: pcg.PCGState) -> jax.Array:
     """Learner-side cost of one edit in env reward units: ``edit_cost`` per tick of ``action``
-    (``int32[..., 4]``) plus ``anchor_cost`` times the change of ``pcg.displacement`` from ``old``
-    to ``new`` (``PCGState`` with matching batch shape). Over an episode the anchor part sums to
-    ``anchor_cost * displacement(final skill)``. Returns ``float32[...]`` (meaningless on reset
-    transitions, which the learner masks)."""
-    ticks = jnp.abs(jnp.asarray(pcg.TICK_FRACTIONS)[action]).sum(-1)
+    (``int32[..., 4]``), weighted per parameter by ``old.preferences`` (ones by default), plus
+    ``anchor_cost`` times the change of ``pcg.displacement`` from ``old`` to ``new`` (``PCGState``
+    with matching batch shape). Over an episode the anchor part sums to ``anchor_cost *
+    displacement(final skill)``. Returns ``float32[...]`` (meaningless on reset transitions, which
+    the learner masks)."""
+    ticks = (jnp.abs(jnp.asarray(pcg.TICK_FRACTIONS)[action]) * old.preferences).sum(-1)
     moved = pcg.displacement(new.skill, new.start) - pcg.displacement(old.skill, old.start)
     return config.edit_cost * ticks + config.anchor_cost * moved
 

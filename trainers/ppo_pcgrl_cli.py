@@ -38,6 +38,8 @@ def _args(argv=None):
     ap.add_argument("--edit-cost", type=float, default=None, help="learner penalty per tick moved")
     ap.add_argument("--anchor-cost", type=float, default=None,
                     help="learner penalty per squared tick of displacement from the start skill (diversity)")
+    ap.add_argument("--edit-preferences", action="store_true", default=None,
+                    help="random per-episode edit preferences weight the edit cost (observed; diversity)")
     ap.add_argument("--ent-coef", type=float, default=None, help="entropy bonus coefficient")
     ap.add_argument("--pool-repeats", action="store_true", default=None,
                     help="re-measuring an unchanged skill pools its games (sharper win rate when holding)")
@@ -124,7 +126,8 @@ def evaluate(key, config, runner_params, labels, args) -> dict:
     Returns a dict of per-method ``generate`` outputs (numpy arrays pooled over groups)."""
     p = pcg.make_params(n_games=args.eval_gen_games, max_edits=config.max_edits,
                         strict_length=config.strict_length, observe_target=config.observe_target,
-                        pool_repeats=config.pool_repeats, observe_start=config.observe_start)
+                        pool_repeats=config.pool_repeats, observe_start=config.observe_start,
+                        edit_preferences=config.edit_preferences)
     policy = method_policy(tuple(config.hidden), args.greedy)
     n_seeds = max(s for _, s in labels) + 1
     eps = max(1, args.eval_episodes // n_seeds)
@@ -169,7 +172,8 @@ def main(argv=None) -> None:
     t_start = time.perf_counter()
     config = get_config(args.preset, total_steps=args.total_steps, n_games=args.n_games, n_envs=args.n_envs,
                         lr=args.lr, edit_cost=args.edit_cost, pool_repeats=args.pool_repeats,
-                        ent_coef=args.ent_coef, anchor_cost=args.anchor_cost)
+                        ent_coef=args.ent_coef, anchor_cost=args.anchor_cost,
+                        edit_preferences=args.edit_preferences)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps({**vars(args), "config": config.__dict__}, default=str, indent=1))

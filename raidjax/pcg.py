@@ -218,7 +218,7 @@ def observe(state: PCGState, params: PCGParams) -> jax.Array:
     if params.pool_repeats:
         x = jnp.concatenate([x, jnp.sqrt(100.0 / state.games)[None]])
     if params.observe_start:
-        # scaled like the parameters: in ticks (up to ±6) it saturated the tanh layers and PPO stalled
+        # scaled like the parameters: in ticks (up to ±6) PPO stalled, likely on saturated tanh layers
         x = jnp.concatenate([x, (state.skill - state.start) / (high() - low())])
     if params.edit_preferences:
         x = jnp.concatenate([x, state.preferences / N_PARAMS])

@@ -165,6 +165,14 @@ def test_edit_penalty_weights_ticks_by_preferences():
     assert float(edit_penalty(Config(edit_cost=3.0), a, st, new)) == pytest.approx(3.0 * (2.0 + 0.5 + 0.5))
 
 
+@pytest.mark.parametrize("field,value", [("anchor_cost", -1.0), ("edit_cost", -0.5), ("n_minibatches", 3)])
+def test_ppo_config_rejects_bad_values_naming_the_field(field, value):
+    from trainers.ppo_pcgrl import get_config
+
+    with pytest.raises(ValueError, match=f"{field}: value {value}"):
+        get_config("cpu", **{field: value})
+
+
 def test_pool_repeats_pools_only_an_unchanged_skill():
     p = pcg.make_params(n_games=4, pool_repeats=True, strict_length=True)
     st = _state(target=0.5, w=0.25, games=4)

@@ -61,6 +61,18 @@ class Config:
     # reach the target with whichever parameters an episode makes cheap.
     edit_preferences: bool = False
 
+    def __post_init__(self):
+        checks = {"edit_cost": (self.edit_cost, ">= 0", self.edit_cost >= 0),
+                  "anchor_cost": (self.anchor_cost, ">= 0", self.anchor_cost >= 0),
+                  "ent_coef": (self.ent_coef, ">= 0", self.ent_coef >= 0),
+                  "lr": (self.lr, "> 0", self.lr > 0),
+                  "n_games": (self.n_games, ">= 1", self.n_games >= 1),
+                  "n_minibatches": (self.n_minibatches, "a divisor of n_envs * n_steps",
+                                    self.n_minibatches >= 1 and (self.n_envs * self.n_steps) % self.n_minibatches == 0)}
+        for name, (value, allowed, ok) in checks.items():
+            if not ok:
+                raise ValueError(f"{name}: value {value} must be {allowed}")
+
     @property
     def n_updates(self) -> int:
         return max(1, self.total_steps // (self.n_envs * self.n_steps))
@@ -276,4 +288,7 @@ def get_config(preset: str, **overrides: Any) -> Config:
 if __name__ == "__main__":
     from trainers.ppo_pcgrl_cli import main
 
-    main()
+    try:
+        main()
+    except ValueError as e:
+        raise SystemExit(f"error: {e}") from e

@@ -62,16 +62,15 @@ class Config:
     edit_preferences: bool = False
 
     def __post_init__(self):
-        checks = {"edit_cost": (self.edit_cost, ">= 0", self.edit_cost >= 0),
-                  "anchor_cost": (self.anchor_cost, ">= 0", self.anchor_cost >= 0),
-                  "ent_coef": (self.ent_coef, ">= 0", self.ent_coef >= 0),
-                  "lr": (self.lr, "> 0", self.lr > 0),
-                  "n_games": (self.n_games, ">= 1", self.n_games >= 1),
-                  "n_minibatches": (self.n_minibatches, "a divisor of n_envs * n_steps",
-                                    self.n_minibatches >= 1 and (self.n_envs * self.n_steps) % self.n_minibatches == 0)}
-        for name, (value, allowed, ok) in checks.items():
+        batch = self.n_envs * self.n_steps
+        for name, allowed, ok in (
+                ("edit_cost", ">= 0", self.edit_cost >= 0), ("anchor_cost", ">= 0", self.anchor_cost >= 0),
+                ("ent_coef", ">= 0", self.ent_coef >= 0), ("lr", "> 0", self.lr > 0),
+                ("n_games", ">= 1", self.n_games >= 1),
+                ("n_minibatches", f"a divisor of n_envs * n_steps = {batch}",
+                 self.n_minibatches >= 1 and batch % self.n_minibatches == 0)):
             if not ok:
-                raise ValueError(f"{name}: value {value} must be {allowed}")
+                raise ValueError(f"{name}: value {getattr(self, name)} must be {allowed}")
 
     @property
     def n_updates(self) -> int:

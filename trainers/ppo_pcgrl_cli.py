@@ -21,7 +21,7 @@ import orbax.checkpoint as ocp
 
 from raidjax import pcg
 from raidjax import pcg_metrics as pm
-from trainers.ppo_pcgrl import PRESETS, get_config, make_policy, make_train
+from trainers.ppo_pcgrl import PRESETS, env_params, get_config, make_policy, make_train
 
 
 def _args(argv=None):
@@ -124,10 +124,7 @@ def evaluate(key, config, runner_params, labels, args) -> dict:
             method; PPO's are split over the seeds), ``eval_games`` and ``no_baselines``.
 
     Returns a dict of per-method ``generate`` outputs (numpy arrays pooled over groups)."""
-    p = pcg.make_params(n_games=args.eval_gen_games, max_edits=config.max_edits,
-                        strict_length=config.strict_length, observe_target=config.observe_target,
-                        pool_repeats=config.pool_repeats, observe_start=config.observe_start,
-                        edit_preferences=config.edit_preferences)
+    p = env_params(config).replace(n_games=args.eval_gen_games)  # the training env; targets come from generate
     policy = method_policy(tuple(config.hidden), args.greedy)
     n_seeds = max(s for _, s in labels) + 1
     eps = max(1, args.eval_episodes // n_seeds)

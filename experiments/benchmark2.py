@@ -17,7 +17,7 @@ one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
 
 Variants beyond the paper's protocol (each recorded in ``config.json``): ``--pool-repeats`` (the
 generation environment pools the games of an unchanged skill, for all three generators),
-``--edit-cost``, ``--anchor-cost``, ``--edit-preferences``, ``--ent-coef`` and ``--total-steps``
+``--edit-cost``, ``--anchor-cost``, ``--edit-preferences``, ``--favourite-weight``, ``--ent-coef`` and ``--total-steps``
 (PPO learner), ``--seeds``, ``--episodes``.
 
 The last stdout line is the JSON summary (also ``summary.json``).
@@ -117,6 +117,9 @@ def _parse(argv=None) -> argparse.Namespace:
                     "from the episode's start skill (a diversity term; default 0 = off)")
     ap.add_argument("--edit-preferences", action="store_true", help="PPO learner: random per-episode edit "
                     "preferences (observed) weight the edit cost per parameter (a diversity term)")
+    ap.add_argument("--favourite-weight", type=float, help="PPO learner: the edit preferences are one favourite "
+                    "parameter per episode with this weight in [0, 1], the others (4 - w) / 3 (implies "
+                    "--edit-preferences)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
     ap.add_argument("--total-steps", type=int, help="PPO generator steps per group (default: the scale's)")
     ap.add_argument("--seeds", type=int, help="PPO seeds trained together (default: the scale's)")
@@ -293,7 +296,9 @@ def main(argv=None) -> dict:
 
     a = _parse(argv)
     scale = SCALES[a.scale]
-    ppo = {"edit_cost": a.edit_cost, "anchor_cost": a.anchor_cost, "edit_preferences": a.edit_preferences or None,
+    prefs = a.edit_preferences or a.favourite_weight is not None
+    ppo = {"edit_cost": a.edit_cost, "anchor_cost": a.anchor_cost, "edit_preferences": prefs or None,
+           "favourite_weight": a.favourite_weight,
            "ent_coef": a.ent_coef, "total_steps": a.total_steps,
            "pool_repeats": a.pool_repeats or None}
     scale = dataclasses.replace(scale, ppo={**scale.ppo, **{k: v for k, v in ppo.items() if v is not None}},

@@ -22,8 +22,9 @@ than the ±0.02 band). ``observe_start`` (opt-in) shows the generator how far it
 the episode's random start skill, which a learner can be charged for (``displacement``) to keep
 the variety of the random starts in its output. ``edit_preferences`` (opt-in) draws, per
 episode, how much the designer minds each parameter being edited (``PCGState.preferences``,
-mean 1, observed); a learner charged by them learns to use whichever parameters are cheap, so
-that varying the preferences varies the generated skills.
+mean 1, observed; with ``favourite_weight``, one favourite parameter per episode is the cheap
+one); a learner charged by them learns to use whichever parameters are cheap, so that varying
+the preferences varies the generated skills.
 
 Shapes are for one episode; ``jax.vmap`` runs many generator episodes in parallel, each with
 its own batch of ``n_games`` playtests.
@@ -89,6 +90,9 @@ class PCGParams:
         edit_preferences: draw per-parameter edit preferences per episode, ``4 * softmax(1.5 z)``
             with ``z`` standard normal (mean 1), and append them divided by 4 to the observation
             (static; off = all ones, not observed).
+        favourite_weight: with ``edit_preferences``, draw instead one favourite parameter per
+            episode, uniformly: it gets this weight, the other three ``(4 - w) / 3`` (mean 1), so
+            the episode has one clearly cheap lever (static; ``None`` = the softmax draw).
     """
 
     game: Params
@@ -102,6 +106,7 @@ class PCGParams:
     pool_repeats: bool = struct.field(pytree_node=False, default=False)
     observe_start: bool = struct.field(pytree_node=False, default=False)
     edit_preferences: bool = struct.field(pytree_node=False, default=False)
+    favourite_weight: float | None = struct.field(pytree_node=False, default=None)
 
 
 @struct.dataclass
@@ -146,14 +151,14 @@ def base_game() -> Params:
 def make_params(
     *, target: float | tuple[float, float] = (0.1, 0.7), n_games: int = 100, max_edits: int = 40,
     band: float = 0.02, strict_length: bool = False, observe_target: bool = True, pool_repeats: bool = False,
-    observe_start: bool = False, edit_preferences: bool = False,
+    observe_start: bool = False, edit_preferences: bool = False, favourite_weight: float | None = None,
 ) -> PCGParams:
     """Build ``PCGParams`` on the host.
 
     Args:
         target: a fixed target win rate, or ``(low, high)`` to draw one uniformly per episode.
         n_games, max_edits, band, strict_length, observe_target, pool_repeats, observe_start,
-            edit_preferences: see ``PCGParams``.
+            edit_preferences, favourite_weight: see ``PCGParams``.
 
     Returns:
         ``PCGParams``.
@@ -163,10 +168,18 @@ def make_params(
         raise ValueError(f"target: value {target} must lie in [0, 1] with low <= high")
     if n_games < 1 or max_edits < 1:
         raise ValueError(f"n_games={n_games}, max_edits={max_edits}: both must be >= 1")
+    if favourite_weight is not None:
+        if not edit_preferences:
+            raise ValueError(f"favourite_weight: value {favourite_weight} needs edit_preferences=True")
+        if not 0.0 <= favourite_weight <= 1.0:
+            raise ValueError(f"favourite_weight: value {favourite_weight} must lie in [0, 1] (the favourite "
+                             "parameter is the cheap one; the others weigh (4 - w) / 3)")
+        favourite_weight = float(favourite_weight)
     f = lambda x: np.float32(x)
     return PCGParams(game=base_game(), target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
                      max_edits=max_edits, strict_length=strict_length, observe_target=observe_target,
-                     pool_repeats=pool_repeats, observe_start=observe_start, edit_preferences=edit_preferences)
+                     pool_repeats=pool_repeats, observe_start=observe_start, edit_preferences=edit_preferences,
+                     favourite_weight=favourite_weight)
 
 
 def skill_params(game: Params, skill: jax.Array) -> Params:
@@ -246,8 +259,14 @@ def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None):
         target = jax.random.uniform(k_target, (), minval=params.target_low, maxval=params.target_high)
     prefs = jnp.ones((N_PARAMS,), jnp.float32)
     if params.edit_preferences:  # own key stream: skills and targets stay those drawn without it
-        z = jax.random.normal(jax.random.fold_in(key, 7), (N_PARAMS,))
-        prefs = N_PARAMS * jax.nn.softmax(1.5 * z)
+        k_pref = jax.random.fold_in(key, 7)
+        if params.favourite_weight is None:
+            prefs = N_PARAMS * jax.nn.softmax(1.5 * jax.random.normal(k_pref, (N_PARAMS,)))
+        else:
+            w = params.favourite_weight
+            favourite = jax.random.randint(k_pref, (), 0, N_PARAMS)
+            prefs = jnp.where(jnp.arange(N_PARAMS) == favourite, w, (N_PARAMS - w) / (N_PARAMS - 1))
+        prefs = prefs.astype(jnp.float32)
     return skill, jnp.asarray(target, jnp.float32), prefs
 
 

@@ -156,6 +156,28 @@ def test_edit_preferences_drawn_observed_and_renewed():
     assert not np.allclose(np.asarray(fresh.preferences), prefs)  # a new episode draws new ones
 
 
+def test_favourite_preferences_one_cheap_parameter_uniformly_drawn():
+    on = pcg.make_params(n_games=2, edit_preferences=True, favourite_weight=0.25)
+    soft = pcg.make_params(n_games=2, edit_preferences=True)
+    keys = jax.random.split(jax.random.key(0), 400)
+    prefs = np.asarray(jax.vmap(lambda k: pcg.reset(k, on)[1].preferences)(keys))
+    cheap = prefs.argmin(1)
+    np.testing.assert_allclose(np.sort(prefs, 1), np.broadcast_to([0.25, 1.25, 1.25, 1.25], prefs.shape), rtol=1e-6)
+    counts = np.bincount(cheap, minlength=4)
+    assert counts.min() > 70  # each parameter is the favourite about 100 times in 400
+    o, st = pcg.reset(keys[0], on)
+    _, st_soft = pcg.reset(keys[0], soft)  # the same skill and target as the softmax draw
+    np.testing.assert_array_equal(np.asarray(st.skill), np.asarray(st_soft.skill))
+    np.testing.assert_allclose(np.asarray(o[-4:]), prefs[0] / 4, rtol=1e-6)
+
+
+@pytest.mark.parametrize("kwargs,match", [({"favourite_weight": 1.5, "edit_preferences": True}, r"\[0, 1\]"),
+                                          ({"favourite_weight": 0.2}, "needs edit_preferences")])
+def test_favourite_weight_rejected_when_out_of_range_or_alone(kwargs, match):
+    with pytest.raises(ValueError, match=f"favourite_weight: value {kwargs['favourite_weight']}.*{match}"):
+        pcg.make_params(**kwargs)
+
+
 def test_edit_penalty_weights_ticks_by_preferences():
     from trainers.ppo_pcgrl import Config, edit_penalty
 
@@ -255,14 +277,16 @@ def test_diversity_on_hand_set():
     assert y == {"yield": 0.5, "edits_mean": 22.0, "edits_sd": 18.0}
 
 
-@pytest.mark.parametrize("pool,anchor,prefs", [(False, 0.0, False), (True, 1.0, True)])
-def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor, prefs):
+@pytest.mark.parametrize("pool,anchor,prefs,fav", [(False, 0.0, False, None), (True, 1.0, True, None),
+                                                (True, 0.0, True, 0.25)])
+def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor, prefs, fav):
     import orbax.checkpoint as ocp
 
     from trainers.ppo_pcgrl import Config, make_policy, make_train
 
     cfg = Config(n_envs=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=(8,), n_games=2,
-                 max_edits=2, pool_repeats=pool, anchor_cost=anchor, edit_preferences=prefs, edit_cost=1.0)
+                 max_edits=2, pool_repeats=pool, anchor_cost=anchor, edit_preferences=prefs, edit_cost=1.0,
+                 favourite_weight=fav)
     train = make_train(cfg)
     runner, metrics = jax.jit(train)(jax.random.key(0))
     assert metrics["reward"].shape == (2,) and np.isfinite(np.asarray(metrics["pg_loss"])).all()

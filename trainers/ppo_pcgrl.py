@@ -60,6 +60,9 @@ class Config:
     # is then charged per tick times the moved parameter's preference, so the policy must learn to
     # reach the target with whichever parameters an episode makes cheap.
     edit_preferences: bool = False
+    # env: with edit_preferences, one favourite parameter per episode weighs this much in the edit
+    # cost, the others (4 - w) / 3 (pcg.PCGParams.favourite_weight); None = the softmax draw.
+    favourite_weight: float | None = None
 
     def __post_init__(self):
         batch = self.n_envs * self.n_steps
@@ -126,7 +129,7 @@ def env_params(config: Config, target=None) -> pcg.PCGParams:
     p = pcg.make_params(target=tuple(config.target), n_games=config.n_games, max_edits=config.max_edits,
                         strict_length=config.strict_length, observe_target=config.observe_target,
                         pool_repeats=config.pool_repeats, observe_start=config.observe_start,
-                        edit_preferences=config.edit_preferences)
+                        edit_preferences=config.edit_preferences, favourite_weight=config.favourite_weight)
     if target is not None:
         target = jnp.asarray(target, jnp.float32)
         p = p.replace(target_low=target[0], target_high=target[1])

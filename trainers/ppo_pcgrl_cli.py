@@ -40,6 +40,9 @@ def _args(argv=None):
                     help="learner penalty per squared tick of displacement from the start skill (diversity)")
     ap.add_argument("--edit-preferences", action="store_true", default=None,
                     help="random per-episode edit preferences weight the edit cost (observed; diversity)")
+    ap.add_argument("--favourite-weight", type=float, default=None,
+                    help="edit preferences as one favourite parameter per episode with this weight in [0, 1], "
+                         "the others (4 - w) / 3 (implies --edit-preferences)")
     ap.add_argument("--ent-coef", type=float, default=None, help="entropy bonus coefficient")
     ap.add_argument("--pool-repeats", action="store_true", default=None,
                     help="re-measuring an unchanged skill pools its games (sharper win rate when holding)")
@@ -170,7 +173,8 @@ def main(argv=None) -> None:
     config = get_config(args.preset, total_steps=args.total_steps, n_games=args.n_games, n_envs=args.n_envs,
                         lr=args.lr, edit_cost=args.edit_cost, pool_repeats=args.pool_repeats,
                         ent_coef=args.ent_coef, anchor_cost=args.anchor_cost,
-                        edit_preferences=args.edit_preferences)
+                        edit_preferences=args.edit_preferences or (args.favourite_weight is not None or None),
+                        favourite_weight=args.favourite_weight)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps({**vars(args), "config": config.__dict__}, default=str, indent=1))

@@ -267,7 +267,8 @@ def stage_generate(run: RunFolder, scale: Scale, seed: int) -> dict:
         raise RuntimeError(f"no final PPO checkpoint (update {total}) in {run.out / 'checkpoints' / 'ppo'}")
     params = lr.restore(total)["params"]
     per_part = scale.episodes // scale.parts
-    args = types.SimpleNamespace(eval_gen_games=scale.gen_games, greedy=scale.greedy, eval_episodes=per_part,
+    args = types.SimpleNamespace(eval_gen_games=scale.gen_games, greedy=scale.greedy, temperature=1.0,
+                                 eval_episodes=per_part,
                                  eval_games=scale.eval_games, no_baselines=False)
     t0, done_here, parts = time.perf_counter(), 0, []
     for i in range(scale.parts):

@@ -187,6 +187,35 @@ def test_edit_penalty_weights_ticks_by_preferences():
     assert float(edit_penalty(Config(edit_cost=3.0), a, st, new)) == pytest.approx(3.0 * (2.0 + 0.5 + 0.5))
 
 
+def test_policy_temperature_interpolates_between_argmax_and_uniform():
+    from trainers.ppo_pcgrl import ActorCritic, make_policy
+
+    params = pcg.make_params(n_games=2)
+    obs = pcg.observe(_state(), params)
+    net = ActorCritic((8,)).init(jax.random.key(0), obs)
+    net = jax.tree.map(lambda x: 3.0 * x, net)  # sharper logits than at init
+    logits, _ = ActorCritic((8,)).apply(net, obs)
+    keys = jax.random.split(jax.random.key(1), 4000)
+
+    def sample(**kw):
+        pol = make_policy((8,), **kw)
+        return np.asarray(jax.vmap(lambda k: pol(net, k, obs, None, params))(keys))
+
+    greedy = np.asarray(jnp.argmax(logits, -1))
+    np.testing.assert_array_equal(sample(greedy=True)[0], greedy)
+    top2 = np.sort(np.asarray(logits), -1)[:, -2:]
+    cold = float((top2[:, 1] - top2[:, 0]).min()) / 30  # the best choice is e^30 times likelier
+    assert (sample(temperature=cold) == greedy).all()  # T -> 0: argmax
+    hot = sample(temperature=1e3)  # T -> inf: uniform over the 5 choices of each branch
+    freq = np.stack([np.bincount(hot[:, b], minlength=5) for b in range(4)]) / len(keys)
+    np.testing.assert_allclose(freq, 0.2, atol=0.03)
+    base = sample()  # T = 1 samples softmax(logits)
+    freq1 = np.bincount(base[:, 0], minlength=5) / len(keys)
+    np.testing.assert_allclose(freq1, np.asarray(jax.nn.softmax(logits[0])), atol=0.03)
+    with pytest.raises(ValueError, match="temperature: value 0"):
+        make_policy((8,), temperature=0.0)
+
+
 @pytest.mark.parametrize("field,value", [("anchor_cost", -1.0), ("edit_cost", -0.5), ("n_minibatches", 3)])
 def test_ppo_config_rejects_bad_values_naming_the_field(field, value):
     from trainers.ppo_pcgrl import get_config

@@ -268,16 +268,22 @@ def make_train(config: Config):
 
 
 @cache
-def make_policy(hidden: tuple, greedy: bool = False):
+def make_policy(hidden: tuple, greedy: bool = False, temperature: float = 1.0):
     """Generator policy ``policy(net_params, key, obs, state, params) -> int32[4]`` for ``pcg_metrics``
-    (cached, so the same hashable function is reused and jit does not recompile)."""
+    (cached, so the same hashable function is reused and jit does not recompile).
+
+    ``greedy`` takes the argmax of each branch; otherwise each branch is sampled from
+    ``softmax(logits / temperature)`` (``temperature`` > 0; 1 = the trained policy, above 1 = more
+    random edits, which trades controllability for diversity at generation time)."""
+    if not temperature > 0:
+        raise ValueError(f"temperature: value {temperature} must be > 0 (use greedy=True for argmax)")
     net = ActorCritic(tuple(hidden))
 
     def policy(net_params, key, obs, state, params):
         logits, _ = net.apply(net_params, obs)
         if greedy:
             return jnp.argmax(logits, -1).astype(jnp.int32)
-        return jax.random.categorical(key, logits).astype(jnp.int32)
+        return jax.random.categorical(key, logits / temperature).astype(jnp.int32)
 
     return policy
 

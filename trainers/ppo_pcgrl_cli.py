@@ -51,6 +51,8 @@ def _args(argv=None):
     ap.add_argument("--eval-gen-games", type=int, default=100, help="games per generator measurement in eval")
     ap.add_argument("--eval-games", type=int, default=300, help="games measuring each final skill")
     ap.add_argument("--greedy", action="store_true", help="argmax actions in evaluation")
+    ap.add_argument("--temperature", type=float, default=1.0,
+                    help="evaluation samples each branch from softmax(logits / T) (T > 0; 1 = as trained)")
     ap.add_argument("--no-baselines", action="store_true")
     return ap.parse_args(argv)
 
@@ -98,13 +100,13 @@ def _write_metrics(out: Path, start_update: int, metrics: dict, steps_per_update
 
 
 @cache
-def method_policy(hidden: tuple, greedy: bool = False):
+def method_policy(hidden: tuple, greedy: bool = False, temperature: float = 1.0):
     """One generator policy for PPO, PCG-HR and PCG-RD, so that ``pm.generate`` compiles once per
     episode count rather than once per method: ``policy({"net": net_params, "method": int32[]}, key,
-    obs, state, params) -> int32[4]`` with method 0 = PPO (``make_policy(hidden, greedy)``),
+    obs, state, params) -> int32[4]`` with method 0 = PPO (``make_policy(hidden, greedy, temperature)``),
     1 = ``pcg.heuristic_policy``, 2 = ``pcg.random_policy``. ``method`` is not batched, so the
     ``lax.switch`` stays a conditional and only the chosen branch runs."""
-    ppo = make_policy(tuple(hidden), greedy)
+    ppo = make_policy(tuple(hidden), greedy, temperature)
 
     def policy(pp, key, obs, state, params):
         return jax.lax.switch(pp["method"], [
@@ -123,12 +125,13 @@ def evaluate(key, config, runner_params, labels, args) -> dict:
         config: the PPO ``Config``.
         runner_params: network weights with a leading group axis ``[G, ...]``.
         labels: ``_groups``' labels ``[(target or None, seed)] * G``.
-        args: namespace with ``eval_gen_games``, ``greedy``, ``eval_episodes`` (per target and
-            method; PPO's are split over the seeds), ``eval_games`` and ``no_baselines``.
+        args: namespace with ``eval_gen_games``, ``greedy``, ``temperature`` (PPO's sampling
+            temperature), ``eval_episodes`` (per target and method; PPO's are split over the
+            seeds), ``eval_games`` and ``no_baselines``.
 
     Returns a dict of per-method ``generate`` outputs (numpy arrays pooled over groups)."""
     p = env_params(config).replace(n_games=args.eval_gen_games)  # the training env; targets come from generate
-    policy = method_policy(tuple(config.hidden), args.greedy)
+    policy = method_policy(tuple(config.hidden), args.greedy, args.temperature)
     n_seeds = max(s for _, s in labels) + 1
     eps = max(1, args.eval_episodes // n_seeds)
     parts = []

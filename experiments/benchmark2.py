@@ -157,6 +157,12 @@ class _Learner:
         abstract = jax.eval_shape(self.init, self.keys, self.tg)
         return self.mgr.restore(step, args=self.ocp.args.StandardRestore(abstract))
 
+    def restore_params(self, step: int):
+        """The network weights of checkpoint ``step`` (leading group axis), read without a target
+        structure, so checkpoints whose environment state predates a newer ``PCGState`` field
+        still give their weights for generation."""
+        return self.mgr.restore(step, args=self.ocp.args.StandardRestore())["params"]
+
 
 def _read_train_csv(path, upto: int) -> list[dict]:
     """Rows of ``csv/ppo_train.csv`` with ``update <= upto`` (numbers as floats/ints)."""
@@ -265,7 +271,7 @@ def stage_generate(run: RunFolder, scale: Scale, seed: int) -> dict:
     total = lr.config.n_updates
     if lr.mgr.latest_step() != total:
         raise RuntimeError(f"no final PPO checkpoint (update {total}) in {run.out / 'checkpoints' / 'ppo'}")
-    params = lr.restore(total)["params"]
+    params = lr.restore_params(total)
     per_part = scale.episodes // scale.parts
     args = types.SimpleNamespace(eval_gen_games=scale.gen_games, greedy=scale.greedy, temperature=1.0,
                                  eval_episodes=per_part,

@@ -121,6 +121,34 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
     np.testing.assert_array_equal(b2.load_generated(out / "generated.npz")["PPO"]["win_rate"],
                                   gens["PPO"]["win_rate"])
 
+    # Weights-only restore (what generation uses) equals the full restore's weights.
+    for x, y in zip(jax.tree.leaves(again["params"]), jax.tree.leaves(learner.restore_params(cfg.n_updates)),
+                    strict=True):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+
+    # Temperature sweep: the run's own baselines, PPO regenerated per temperature and cached.
+    from experiments import b2_temperature
+
+    capsys.readouterr()
+    sweep = b2_temperature.main([str(out), "--temperatures", "0", "1", "--resamples", "5"])
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["key"] == 99
+    for row in sweep["temperatures"]:
+        assert row["all"]["PCG-HR"]["error"] == pytest.approx(saved["mean_error"]["PCG-HR"], abs=1e-9)
+        assert len(row["per_seed"]) == b2.SCALES["smoke"].seeds
+    cached = out / "temperature" / "T0.npz"
+    ppo0 = b2.load_generated(cached)["PPO"]
+    assert list(b2.load_generated(cached)) == ["PPO"] and ppo0["skill"].shape == gens["PPO"]["skill"].shape
+    stamp = cached.stat().st_mtime_ns
+    again_sweep = b2_temperature.main([str(out), "--temperatures", "0", "--resamples", "5"])
+    assert cached.stat().st_mtime_ns == stamp  # reused, not regenerated
+    assert again_sweep["temperatures"][0]["all"]["PPO"]["error"] == sweep["temperatures"][0]["all"]["PPO"]["error"]
+    fresh = b2_temperature.main([str(out), "--temperatures", "1", "--resamples", "5", "--key", "7",
+                                 "--fresh-baselines"])
+    assert list(b2.load_generated(out / "temperature" / "T1_key7_all.npz")) == list(b2.METHODS)
+    assert fresh["temperatures"][0]["all"]["PCG-HR"]["error"] != row["all"]["PCG-HR"]["error"]
+    with pytest.raises(SystemExit, match="temperatures"):
+        b2_temperature.main([str(out), "--temperatures", "-1"])
+
 
 def test_b2_compare_splits_seeds_and_bootstraps():
     from experiments import b2_compare

@@ -171,3 +171,22 @@ def test_b2_compare_splits_seeds_and_bootstraps():
     boot = b2_compare.bootstrap(gens, resamples=20)
     lo, hi = boot["error_diff_ci95"]
     assert lo <= 0.15 - 0.05 <= hi  # PPO 0.15 on average against PCG-HR 0.05
+
+
+def test_b2_levers_moves_in_span_fractions_and_by_cheapest_parameter():
+    from experiments.b2_levers import moves
+    from raidjax import pcg
+
+    low, span = np.asarray(pcg.LOW), np.asarray(pcg.HIGH) - np.asarray(pcg.LOW)
+    start = np.tile(low + 0.5 * span, (2, 1))
+    skill = start + np.array([[0.25, 0.0, 0.0, 0.0], [0.0, 0.0, -0.5, 0.0]]) * span  # range up, cast down
+    prefs = np.array([[0.3, 1.2, 1.2, 1.2], [1.2, 1.2, 0.3, 1.2]])
+    gen = {"skill": skill, "start": start, "preferences": prefs, "win_rate": np.array([0.3, 0.5]),
+           "target": np.array([0.2, 0.5]), "edits": np.array([2, 4])}
+    out = moves(gen)
+    np.testing.assert_allclose(out["abs"], [0.125, 0, 0.25, 0], atol=1e-3)
+    np.testing.assert_allclose(out["signed"], [0.125, 0, -0.25, 0], atol=1e-3)
+    assert out["error"] == pytest.approx(0.05) and out["edits"] == 3.0
+    assert out["by_cheapest"]["range"] == {"n": 1, "abs": [0.25, 0.0, 0.0, 0.0]}
+    assert out["by_cheapest"]["cast_time"]["abs"] == [0.0, 0.0, 0.5, 0.0]
+    assert "by_cheapest" not in moves({**gen, "preferences": np.ones((2, 4))})

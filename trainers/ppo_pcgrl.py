@@ -274,7 +274,7 @@ def make_policy(hidden: tuple, greedy: bool = False, temperature: float = 1.0):
 
     ``greedy`` takes the argmax of each branch; otherwise each branch is sampled from
     ``softmax(logits / temperature)`` (``temperature`` > 0; 1 = the trained policy, above 1 = more
-    random edits, which trades controllability for diversity at generation time)."""
+    random edits; on Benchmark 2 that did not raise diversity, see docs/RESULTS.md)."""
     if not temperature > 0:
         raise ValueError(f"temperature: value {temperature} must be > 0 (use greedy=True for argmax)")
     net = ActorCritic(tuple(hidden))

@@ -3,11 +3,11 @@
     python -m experiments.b2_levers runs/b2_fav0.3 --episodes 8
 
 Generates ``--episodes`` episodes per target (0.1-0.7) with each trained PPO seed and with
-PCG-HR, on the run's training environment (so PPO sees the preferences it was trained with), and
-reports per generator the mean absolute and the mean signed move of each parameter from the
-episode's random start to its final skill, in fractions of the parameter's span, overall and
-grouped by the episode's cheapest parameter when the run drew edit preferences. The last stdout
-line is one JSON object.
+PCG-HR (``ppo_pcgrl_cli.evaluate``), on the run's training environment (so PPO sees the
+preferences it was trained with). Reports per generator the mean absolute and the mean signed
+move of each parameter from the episode's random start to its final skill, in fractions of the
+parameter's span, overall and grouped by the episode's cheapest parameter when the run drew edit
+preferences. The last stdout line is one JSON object.
 """
 
 from __future__ import annotations
@@ -17,14 +17,11 @@ import json
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
-from experiments.b2_temperature import learner
+from experiments.b2_temperature import _args, learner
 from raidjax import pcg
-from raidjax import pcg_metrics as pm
-from trainers.ppo_pcgrl import env_params
-from trainers.ppo_pcgrl_cli import method_policy
+from trainers.ppo_pcgrl_cli import evaluate
 
 
 def moves(gen: dict) -> dict:
@@ -43,6 +40,12 @@ def moves(gen: dict) -> dict:
     return out
 
 
+def _split(gen: dict, n: int) -> list[dict]:
+    """``n`` equal consecutive blocks of every field of a ``generate`` output."""
+    m = len(gen["target"]) // n
+    return [{k: v[i * m:(i + 1) * m] for k, v in gen.items()} for i in range(n)]
+
+
 def main(argv=None) -> dict:
     """Print and return ``{"params": [...], "generators": {name: moves(...)}}``."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -51,18 +54,14 @@ def main(argv=None) -> dict:
     ap.add_argument("--key", type=int, default=100)
     a = ap.parse_args(argv)
     lr, cfg = learner(Path(a.run))
-    weights = lr.restore_params(lr.config.n_updates)
-    params = env_params(lr.config).replace(n_games=cfg["gen_games"])
-    policy = method_policy(tuple(lr.config.hidden))
-    out = {}
-    groups = [(f"PPO group {g} (target {t}, seed {s})" if t is not None else f"PPO seed {s}", g, 0, t)
-              for g, (t, s) in enumerate(lr.labels)]
-    for name, g, method, t in [*groups, ("PCG-HR", 0, 1, None)]:
-        pp = {"net": jax.tree.map(lambda x, g=g: x[g], weights), "method": jnp.int32(method)}
-        gen = pm.generate(jax.random.fold_in(jax.random.key(a.key), g), policy, params, policy_params=pp,
-                          targets=pm.TARGETS if t is None else (t,), episodes=a.episodes,
-                          eval_games=cfg["eval_games"])
-        out[name] = moves(gen)
+    n_groups = len(lr.labels)
+    args = _args(cfg, 1.0, baselines=True)
+    args.eval_episodes = a.episodes * n_groups  # evaluate splits PPO's episodes over the groups
+    gens = evaluate(jax.random.key(a.key), lr.config, lr.restore_params(lr.config.n_updates), lr.labels, args)
+    # evaluate concatenates the groups' equal-sized blocks in label order
+    out = {(f"PPO group {g} (target {t}, seed {s})" if t is not None else f"PPO seed {s}"): moves(block)
+           for g, ((t, s), block) in enumerate(zip(lr.labels, _split(gens["PPO"], n_groups), strict=True))}
+    out["PCG-HR"] = moves(gens["PCG-HR"])
     result = {"run": a.run, "params": list(pcg.PARAM_NAMES), "generators": out}
     print(json.dumps(result))
     return result

@@ -17,8 +17,8 @@ one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
 
 Variants beyond the paper's protocol (each recorded in ``config.json``): ``--pool-repeats`` (the
 generation environment pools the games of an unchanged skill, for all three generators),
-``--edit-cost``, ``--anchor-cost``, ``--edit-preferences``, ``--favourite-weight``, ``--ent-coef`` and ``--total-steps``
-(PPO learner), ``--seeds``, ``--episodes``.
+``--edit-cost``, ``--anchor-cost``, ``--edit-preferences``, ``--favourite-weight``, ``--ent-coef``
+and ``--total-steps`` (PPO learner), ``--seeds``, ``--episodes``.
 
 The last stdout line is the JSON summary (also ``summary.json``).
 """

@@ -149,6 +149,13 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
     with pytest.raises(SystemExit, match="temperatures"):
         b2_temperature.main([str(out), "--temperatures", "-1"])
 
+    # Lever report: one entry per PPO seed and PCG-HR, moves within the span.
+    from experiments import b2_levers
+
+    levers = b2_levers.main([str(out), "--episodes", "1"])["generators"]
+    assert list(levers) == [f"PPO seed {s}" for s in range(b2.SCALES["smoke"].seeds)] + ["PCG-HR"]
+    assert all(0 <= m <= 1 for g in levers.values() for m in g["abs"])
+
 
 def test_b2_compare_splits_seeds_and_bootstraps():
     from experiments import b2_compare
@@ -174,7 +181,7 @@ def test_b2_compare_splits_seeds_and_bootstraps():
 
 
 def test_b2_levers_moves_in_span_fractions_and_by_cheapest_parameter():
-    from experiments.b2_levers import moves
+    from experiments.b2_levers import _split, moves
     from raidjax import pcg
 
     low, span = np.asarray(pcg.LOW), np.asarray(pcg.HIGH) - np.asarray(pcg.LOW)
@@ -190,3 +197,6 @@ def test_b2_levers_moves_in_span_fractions_and_by_cheapest_parameter():
     assert out["by_cheapest"]["range"] == {"n": 1, "abs": [0.25, 0.0, 0.0, 0.0]}
     assert out["by_cheapest"]["cast_time"]["abs"] == [0.0, 0.0, 0.5, 0.0]
     assert "by_cheapest" not in moves({**gen, "preferences": np.ones((2, 4))})
+    first, second = _split(gen, 2)
+    np.testing.assert_array_equal(second["skill"], skill[1:])
+    np.testing.assert_array_equal(first["edits"], [2])

@@ -176,7 +176,7 @@ def main(argv=None) -> None:
     config = get_config(args.preset, total_steps=args.total_steps, n_games=args.n_games, n_envs=args.n_envs,
                         lr=args.lr, edit_cost=args.edit_cost, pool_repeats=args.pool_repeats,
                         ent_coef=args.ent_coef, anchor_cost=args.anchor_cost,
-                        edit_preferences=args.edit_preferences or (args.favourite_weight is not None or None),
+                        edit_preferences=(args.edit_preferences or args.favourite_weight is not None) or None,
                         favourite_weight=args.favourite_weight)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -24,7 +24,10 @@ the variety of the random starts in its output. ``edit_preferences`` (opt-in) dr
 episode, how much the designer minds each parameter being edited (``PCGState.preferences``,
 mean 1, observed; with ``favourite_weight``, one favourite parameter per episode is the cheap
 one); a learner charged by them learns to use whichever parameters are cheap, so that varying
-the preferences varies the generated skills.
+the preferences varies the generated skills. ``observe_lever`` (opt-in) draws one designated
+parameter per edit, uniformly (``PCGState.lever``, observed one-hot); the environment does not
+enforce it, a learner may restrict itself to it (PCG-HR's random choice of parameter, kept
+outside the policy, so that no single parameter becomes the generator's habit).
 
 Shapes are for one episode; ``jax.vmap`` runs many generator episodes in parallel, each with
 its own batch of ``n_games`` playtests.
@@ -93,6 +96,8 @@ class PCGParams:
         favourite_weight: with ``edit_preferences``, draw instead one favourite parameter per
             episode, uniformly: it gets this weight, the other three ``(4 - w) / 3`` (mean 1), so
             the episode has one clearly cheap lever (static; ``None`` = the softmax draw).
+        observe_lever: draw a designated parameter ("lever") uniformly at reset and after every
+            edit and append it one-hot to the observation (static; off = lever 0, not observed).
     """
 
     game: Params
@@ -107,6 +112,7 @@ class PCGParams:
     observe_start: bool = struct.field(pytree_node=False, default=False)
     edit_preferences: bool = struct.field(pytree_node=False, default=False)
     favourite_weight: float | None = struct.field(pytree_node=False, default=None)
+    observe_lever: bool = struct.field(pytree_node=False, default=False)
 
 
 @struct.dataclass
@@ -124,6 +130,8 @@ class PCGState:
         start: ``float32[4]`` the skill the episode started from.
         preferences: ``float32[4]`` per-parameter edit weights of the episode (ones unless
             ``edit_preferences``); the environment only observes them, a learner may be charged by them.
+        lever: ``int32[]`` the parameter designated for the next edit (0 unless ``observe_lever``);
+            observed, not enforced.
     """
 
     skill: jax.Array
@@ -135,6 +143,7 @@ class PCGState:
     games: jax.Array
     start: jax.Array
     preferences: jax.Array
+    lever: jax.Array
 
 
 _BASE: list[Params] = []
@@ -152,13 +161,14 @@ def make_params(
     *, target: float | tuple[float, float] = (0.1, 0.7), n_games: int = 100, max_edits: int = 40,
     band: float = 0.02, strict_length: bool = False, observe_target: bool = True, pool_repeats: bool = False,
     observe_start: bool = False, edit_preferences: bool = False, favourite_weight: float | None = None,
+    observe_lever: bool = False,
 ) -> PCGParams:
     """Build ``PCGParams`` on the host.
 
     Args:
         target: a fixed target win rate, or ``(low, high)`` to draw one uniformly per episode.
         n_games, max_edits, band, strict_length, observe_target, pool_repeats, observe_start,
-            edit_preferences, favourite_weight: see ``PCGParams``.
+            edit_preferences, favourite_weight, observe_lever: see ``PCGParams``.
 
     Returns:
         ``PCGParams``.
@@ -179,7 +189,7 @@ def make_params(
     return PCGParams(game=base_game(), target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
                      max_edits=max_edits, strict_length=strict_length, observe_target=observe_target,
                      pool_repeats=pool_repeats, observe_start=observe_start, edit_preferences=edit_preferences,
-                     favourite_weight=favourite_weight)
+                     favourite_weight=favourite_weight, observe_lever=observe_lever)
 
 
 def skill_params(game: Params, skill: jax.Array) -> Params:
@@ -223,8 +233,8 @@ def observe(state: PCGState, params: PCGParams) -> jax.Array:
     """Observation: the 4 parameters min-max scaled to [0, 1], then target and last win rate when
     ``params.observe_target``, then ``sqrt(100 / games)`` when ``params.pool_repeats``, then the
     displacement from the start skill (scaled like the parameters, in [-1, 1]) when
-    ``params.observe_start``, then the edit preferences / 4 when ``params.edit_preferences``:
-    ``float32[obs_size(params)]`` (4 to 15)."""
+    ``params.observe_start``, then the edit preferences / 4 when ``params.edit_preferences``, then
+    the lever one-hot when ``params.observe_lever``: ``float32[obs_size(params)]`` (4 to 19)."""
     x = (state.skill - low()) / (high() - low())
     if params.observe_target:
         x = jnp.concatenate([x, jnp.stack([state.target, state.win_rate])])
@@ -235,12 +245,14 @@ def observe(state: PCGState, params: PCGParams) -> jax.Array:
         x = jnp.concatenate([x, (state.skill - state.start) / (high() - low())])
     if params.edit_preferences:
         x = jnp.concatenate([x, state.preferences / N_PARAMS])
+    if params.observe_lever:
+        x = jnp.concatenate([x, jax.nn.one_hot(state.lever, N_PARAMS)])
     return x.astype(jnp.float32)
 
 
 def obs_size(params: PCGParams) -> int:
-    """Length of the observation vector (4 to 15)."""
-    return (N_PARAMS * (1 + int(params.observe_start) + int(params.edit_preferences))
+    """Length of the observation vector (4 to 19)."""
+    return (N_PARAMS * (1 + int(params.observe_start) + int(params.edit_preferences) + int(params.observe_lever))
             + 2 * int(params.observe_target) + int(params.pool_repeats))
 
 
@@ -250,6 +262,14 @@ def displacement(skill: jax.Array, start: jax.Array) -> jax.Array:
     little costs less than moving one a lot (the generator's output then varies in every
     parameter, as the random starts do)."""
     return jnp.sum(((skill - start) / tick()) ** 2, -1)
+
+
+def _lever(key: jax.Array, params: PCGParams) -> jax.Array:
+    """The next designated parameter, ``int32[]``: uniform with ``observe_lever`` (its own key
+    stream, so skills, targets and playtests stay those drawn without it), else 0."""
+    if not params.observe_lever:
+        return jnp.int32(0)
+    return jax.random.randint(jax.random.fold_in(key, 11), (), 0, N_PARAMS, jnp.int32)
 
 
 def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None):
@@ -285,7 +305,8 @@ def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) ->
     skill, target, prefs = _fresh(k_new, params, target)
     w = measure(k_play, params, skill)
     state = PCGState(skill=skill, target=target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
-                     reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill, preferences=prefs)
+                     reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill, preferences=prefs,
+                     lever=_lever(k_new, params))
     return observe(state, params), state
 
 
@@ -308,7 +329,8 @@ def advance(state: PCGState, skill: jax.Array, w: jax.Array, params: PCGParams) 
         done = done | close
     reward = reward_fn(state.target, state.win_rate, w)
     new = PCGState(skill=skill, target=state.target, win_rate=w, edits=edits, done=done,
-                   reached=state.reached | close, games=games, start=state.start, preferences=state.preferences)
+                   reached=state.reached | close, games=games, start=state.start, preferences=state.preferences,
+                   lever=state.lever)
     return new, reward
 
 
@@ -329,6 +351,7 @@ def step(key: jax.Array, state: PCGState, action: jax.Array, params: PCGParams):
     skill = apply_action(state.skill, action)
     w = measure(key, params, skill)
     new, reward = advance(state, skill, w, params)
+    new = new.replace(lever=_lever(key, params))
     info = {"win_rate": new.win_rate, "edits": new.edits, "reached": new.reached, "valid": jnp.bool_(True)}
     return observe(new, params), new, reward, new.done, info
 
@@ -351,8 +374,9 @@ def step_autoreset(key: jax.Array, state: PCGState, action: jax.Array, params: P
     edited, reward = advance(state, skill, w, params)
     started = PCGState(skill=skill, target=fresh_target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
                        reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill,
-                       preferences=fresh_prefs)
+                       preferences=fresh_prefs, lever=state.lever)
     new = jax.tree.map(lambda a, b: jnp.where(state.done, a, b), started, edited)
+    new = new.replace(lever=_lever(key, params))
     reward = jnp.where(state.done, 0.0, reward)
     info = {"win_rate": new.win_rate, "edits": new.edits, "reached": new.reached, "valid": ~state.done,
             "final_error": jnp.abs(new.target - new.win_rate)}

@@ -154,3 +154,14 @@ def rollout(key, state, params, actions):
         return s, (r, done, info["result"], finite)
 
     return jax.lax.scan(body, state, (jnp.arange(1, T_ROLL + 1), actions))
+
+
+def pcg_state(skill=(10.0, 0.55, 1.0, 0.75), target=0.5, w=0.3, edits=0, games=4):
+    """A hand-made ``raidjax.pcg.PCGState``: ``skill`` float32[4] (also the start), target, last
+    win rate ``w``, ``edits`` made, ``games`` behind ``w``; ones as preferences, lever 0."""
+    from raidjax import pcg
+
+    return pcg.PCGState(skill=jnp.asarray(skill, jnp.float32), target=jnp.float32(target), win_rate=jnp.float32(w),
+                        edits=jnp.int32(edits), done=jnp.bool_(False), reached=jnp.bool_(False),
+                        games=jnp.float32(games), start=jnp.asarray(skill, jnp.float32),
+                        preferences=jnp.ones(4, jnp.float32), lever=jnp.int32(0))

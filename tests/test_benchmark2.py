@@ -115,7 +115,8 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
         b2.main(["--scale", "cpu", "--out", str(out)])
     with pytest.raises(ValueError, match="seed"):
         b2.main(["--scale", "smoke", "--out", str(out), "--seed", "4"])
-    for variant in (["--pool-repeats"], ["--ent-coef", "0.01"], ["--episodes", "4"]):  # recorded in config.json
+    # every variant is recorded in config.json
+    for variant in (["--pool-repeats"], ["--ent-coef", "0.01"], ["--episodes", "4"], ["--one-lever"]):
         with pytest.raises(ValueError, match="other settings"):
             b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3", *variant])
     np.testing.assert_array_equal(b2.load_generated(out / "generated.npz")["PPO"]["win_rate"],

@@ -6,19 +6,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import pcg_state as _state
 
 from raidjax import pcg
 from raidjax import pcg_metrics as pm
 
 LOW, HIGH = np.array(pcg.LOW), np.array(pcg.HIGH)
 TICK = (HIGH - LOW) / 6
-
-
-def _state(skill=(10.0, 0.55, 1.0, 0.75), target=0.5, w=0.3, edits=0, games=4):
-    return pcg.PCGState(skill=jnp.asarray(skill, jnp.float32), target=jnp.float32(target), win_rate=jnp.float32(w),
-                        edits=jnp.int32(edits), done=jnp.bool_(False), reached=jnp.bool_(False),
-                        games=jnp.float32(games), start=jnp.asarray(skill, jnp.float32),
-                        preferences=jnp.ones(4, jnp.float32))
 
 
 def test_ticks_and_clipping():
@@ -100,120 +94,6 @@ def test_observation_modes():
     np.testing.assert_allclose(np.asarray(o), [0, 0, 0, 0, 0.4, 0.2], atol=1e-6)
     assert pcg.observe(st, pcg.make_params(n_games=4, observe_target=False)).shape == (4,)
 
-
-def test_start_skill_displacement_and_its_observation():
-    p = pcg.make_params(n_games=2, max_edits=2, observe_start=True)
-    _, st = pcg.reset(jax.random.key(0), p)
-    start = np.asarray(st.skill)
-    np.testing.assert_array_equal(np.asarray(st.start), start)
-    act = jnp.asarray([4, 0, 2, 3], jnp.int32)  # +1, -1, 0, +1/2 ticks
-    o, st1, _, _, _ = pcg.step(jax.random.key(1), st, act, p)
-    np.testing.assert_array_equal(np.asarray(st1.start), start)  # the start stays through edits
-    moved = (np.asarray(st1.skill) - start) / np.asarray(pcg.tick())  # clipping may shorten a move
-    assert o.shape == (pcg.obs_size(p),) == (10,)
-    np.testing.assert_allclose(np.asarray(o[-4:]), moved / 6.0, atol=1e-5)  # a tick is 1/6 of the range
-    assert float(pcg.displacement(st1.skill, st1.start)) == pytest.approx(float((moved ** 2).sum()), rel=1e-5)
-    assert float(pcg.displacement(jnp.asarray(pcg.LOW) + pcg.tick() * jnp.asarray([2.0, 0, 0, 1]),
-                                  jnp.asarray(pcg.LOW))) == pytest.approx(5.0, rel=1e-5)  # 2^2 + 1^2 ticks^2
-    ended = st1.replace(done=jnp.bool_(True))
-    _, fresh, _, _, info = pcg.step_autoreset(jax.random.key(2), ended, act, p)
-    assert not bool(info["valid"])
-    np.testing.assert_array_equal(np.asarray(fresh.start), np.asarray(fresh.skill))  # a reset starts anew
-
-
-def test_edit_penalty_telescopes_to_final_displacement():
-    from trainers.ppo_pcgrl import Config, edit_penalty
-
-    cfg = Config(edit_cost=0.5, anchor_cost=2.0)
-    st = _state(skill=(10.0, 0.55, 1.0, 0.75))
-    total, ticks = 0.0, 0.0
-    for a in ([4, 2, 2, 2], [4, 1, 2, 2], [0, 2, 3, 2], [2, 2, 2, 2]):  # out, out, back: oscillation is free
-        a = jnp.asarray(a, jnp.int32)
-        new = st.replace(skill=pcg.apply_action(st.skill, a))
-        total += float(edit_penalty(cfg, a, st, new))
-        ticks += float(np.abs(np.asarray(pcg.TICK_FRACTIONS)[np.asarray(a)]).sum())
-        st = new
-    final = float(pcg.displacement(st.skill, st.start))
-    assert final == pytest.approx(1.0 + 0.25 + 0.25, rel=1e-4)  # range +1 tick, cool -1/2, cast +1/2
-    assert total == pytest.approx(0.5 * ticks + 2.0 * final, rel=1e-4)
-
-
-def test_edit_preferences_drawn_observed_and_renewed():
-    on, off = pcg.make_params(n_games=2, edit_preferences=True), pcg.make_params(n_games=2)
-    o, st = pcg.reset(jax.random.key(3), on)
-    _, st_off = pcg.reset(jax.random.key(3), off)
-    prefs = np.asarray(st.preferences)
-    assert (prefs > 0).all() and prefs.sum() == pytest.approx(4.0, rel=1e-5) and prefs.std() > 0.05
-    np.testing.assert_array_equal(np.asarray(st_off.preferences), np.ones(4))  # off: all ones
-    np.testing.assert_array_equal(np.asarray(st.skill), np.asarray(st_off.skill))  # same skills and targets
-    assert float(st.target) == float(st_off.target)
-    assert o.shape == (pcg.obs_size(on),) == (10,) and pcg.obs_size(off) == 6
-    np.testing.assert_allclose(np.asarray(o[-4:]), prefs / 4, rtol=1e-6)
-    _, st1, _, _, _ = pcg.step(jax.random.key(4), st, jnp.full(4, 4, jnp.int32), on)
-    np.testing.assert_array_equal(np.asarray(st1.preferences), prefs)  # kept through edits
-    _, fresh, _, _, _ = pcg.step_autoreset(jax.random.key(5), st1.replace(done=jnp.bool_(True)),
-                                           jnp.full(4, 4, jnp.int32), on)
-    assert not np.allclose(np.asarray(fresh.preferences), prefs)  # a new episode draws new ones
-
-
-def test_favourite_preferences_one_cheap_parameter_uniformly_drawn():
-    on = pcg.make_params(n_games=2, edit_preferences=True, favourite_weight=0.25)
-    soft = pcg.make_params(n_games=2, edit_preferences=True)
-    keys = jax.random.split(jax.random.key(0), 400)
-    prefs = np.asarray(jax.vmap(lambda k: pcg.reset(k, on)[1].preferences)(keys))
-    cheap = prefs.argmin(1)
-    np.testing.assert_allclose(np.sort(prefs, 1), np.broadcast_to([0.25, 1.25, 1.25, 1.25], prefs.shape), rtol=1e-6)
-    counts = np.bincount(cheap, minlength=4)
-    assert counts.min() > 70  # each parameter is the favourite about 100 times in 400
-    o, st = pcg.reset(keys[0], on)
-    _, st_soft = pcg.reset(keys[0], soft)  # the same skill and target as the softmax draw
-    np.testing.assert_array_equal(np.asarray(st.skill), np.asarray(st_soft.skill))
-    np.testing.assert_allclose(np.asarray(o[-4:]), prefs[0] / 4, rtol=1e-6)
-
-
-@pytest.mark.parametrize("kwargs,match", [({"favourite_weight": 1.5, "edit_preferences": True}, r"\[0, 1\]"),
-                                          ({"favourite_weight": 0.2}, "needs edit_preferences")])
-def test_favourite_weight_rejected_when_out_of_range_or_alone(kwargs, match):
-    with pytest.raises(ValueError, match=f"favourite_weight: value {kwargs['favourite_weight']}.*{match}"):
-        pcg.make_params(**kwargs)
-
-
-def test_edit_penalty_weights_ticks_by_preferences():
-    from trainers.ppo_pcgrl import Config, edit_penalty
-
-    st = _state().replace(preferences=jnp.asarray([2.0, 1.0, 0.5, 0.5]))
-    a = jnp.asarray([4, 1, 2, 0], jnp.int32)  # +1, -1/2, 0, -1 ticks
-    new = st.replace(skill=pcg.apply_action(st.skill, a))
-    assert float(edit_penalty(Config(edit_cost=3.0), a, st, new)) == pytest.approx(3.0 * (2.0 + 0.5 + 0.5))
-
-
-def test_policy_temperature_interpolates_between_argmax_and_uniform():
-    from trainers.ppo_pcgrl import ActorCritic, make_policy
-
-    params = pcg.make_params(n_games=2)
-    obs = pcg.observe(_state(), params)
-    net = ActorCritic((8,)).init(jax.random.key(0), obs)
-    net = jax.tree.map(lambda x: 3.0 * x, net)  # sharper logits than at init
-    logits, _ = ActorCritic((8,)).apply(net, obs)
-    keys = jax.random.split(jax.random.key(1), 4000)
-
-    def sample(**kw):
-        pol = make_policy((8,), **kw)
-        return np.asarray(jax.vmap(lambda k: pol(net, k, obs, None, params))(keys))
-
-    greedy = np.asarray(jnp.argmax(logits, -1))
-    np.testing.assert_array_equal(sample(greedy=True)[0], greedy)
-    top2 = np.sort(np.asarray(logits), -1)[:, -2:]
-    cold = float((top2[:, 1] - top2[:, 0]).min()) / 30  # the best choice is e^30 times likelier
-    assert (sample(temperature=cold) == greedy).all()  # T -> 0: argmax
-    hot = sample(temperature=1e3)  # T -> inf: uniform over the 5 choices of each branch
-    freq = np.stack([np.bincount(hot[:, b], minlength=5) for b in range(4)]) / len(keys)
-    np.testing.assert_allclose(freq, 0.2, atol=0.03)
-    base = sample()  # T = 1 samples softmax(logits)
-    freq1 = np.bincount(base[:, 0], minlength=5) / len(keys)
-    np.testing.assert_allclose(freq1, np.asarray(jax.nn.softmax(logits[0])), atol=0.03)
-    with pytest.raises(ValueError, match="temperature: value 0"):
-        make_policy((8,), temperature=0.0)
 
 
 @pytest.mark.parametrize("field,value", [("anchor_cost", -1.0), ("edit_cost", -0.5), ("n_minibatches", 3)])
@@ -306,16 +186,16 @@ def test_diversity_on_hand_set():
     assert y == {"yield": 0.5, "edits_mean": 22.0, "edits_sd": 18.0}
 
 
-@pytest.mark.parametrize("pool,anchor,prefs,fav", [(False, 0.0, False, None), (True, 1.0, True, None),
-                                                (True, 0.0, True, 0.25)])
-def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor, prefs, fav):
+@pytest.mark.parametrize("pool,anchor,prefs,fav,lever", [(False, 0.0, False, None, False),
+                                                      (True, 1.0, True, None, False), (True, 0.0, True, 0.25, True)])
+def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor, prefs, fav, lever):
     import orbax.checkpoint as ocp
 
     from trainers.ppo_pcgrl import Config, make_policy, make_train
 
     cfg = Config(n_envs=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=(8,), n_games=2,
                  max_edits=2, pool_repeats=pool, anchor_cost=anchor, edit_preferences=prefs, edit_cost=1.0,
-                 favourite_weight=fav)
+                 favourite_weight=fav, one_lever=lever)
     train = make_train(cfg)
     runner, metrics = jax.jit(train)(jax.random.key(0))
     assert metrics["reward"].shape == (2,) and np.isfinite(np.asarray(metrics["pg_loss"])).all()
@@ -328,11 +208,11 @@ def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor, prefs, fa
     back = mgr.restore(mgr.latest_step(), args=ocp.args.StandardRestore(abstract))
     for a, b in zip(jax.tree.leaves(runner), jax.tree.leaves(back), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    policy = make_policy((8,), True)
+    policy = make_policy((8,), True, one_lever=lever)
     obs = pcg.observe(_state(), pcg.make_params(n_games=2, pool_repeats=pool, observe_start=cfg.observe_start,
-                                                 edit_preferences=prefs))
-    assert obs.shape == (6 + pool + 4 * (anchor > 0) + 4 * prefs,)
-    a = policy(back["params"], jax.random.key(1), obs, None, None)
+                                                 edit_preferences=prefs, observe_lever=lever))
+    assert obs.shape == (6 + pool + 4 * (anchor > 0) + 4 * prefs + 4 * lever,)
+    a = policy(back["params"], jax.random.key(1), obs, _state(), None)
     assert a.shape == (4,) and a.dtype == jnp.int32
 
 

@@ -63,6 +63,10 @@ class Config:
     # env: with edit_preferences, one favourite parameter per episode weighs this much in the edit
     # cost, the others (4 - w) / 3 (pcg.PCGParams.favourite_weight); None = the softmax draw.
     favourite_weight: float | None = None
+    # policy: edit only the parameter the env designates for this step (pcg.PCGParams.observe_lever,
+    # drawn uniformly, observed), as PCG-HR edits a random one; the policy picks how far to move it
+    # (or to hold). Keeps a learned generator from moving one favourite parameter in every episode.
+    one_lever: bool = False
 
     def __post_init__(self):
         batch = self.n_envs * self.n_steps
@@ -117,6 +121,7 @@ class ActorCritic(nn.Module):
 class Transition(NamedTuple):
     obs: jax.Array
     action: jax.Array
+    branches: jax.Array  # float32[4]: 1 on the branches the policy decides (all, or the lever)
     logp: jax.Array
     value: jax.Array
     reward: jax.Array
@@ -129,7 +134,8 @@ def env_params(config: Config, target=None) -> pcg.PCGParams:
     p = pcg.make_params(target=tuple(config.target), n_games=config.n_games, max_edits=config.max_edits,
                         strict_length=config.strict_length, observe_target=config.observe_target,
                         pool_repeats=config.pool_repeats, observe_start=config.observe_start,
-                        edit_preferences=config.edit_preferences, favourite_weight=config.favourite_weight)
+                        edit_preferences=config.edit_preferences, favourite_weight=config.favourite_weight,
+                        observe_lever=config.one_lever)
     if target is not None:
         target = jnp.asarray(target, jnp.float32)
         p = p.replace(target_low=target[0], target_high=target[1])
@@ -148,10 +154,23 @@ def edit_penalty(config: Config, action: jax.Array, old: pcg.PCGState, new: pcg.
     return config.edit_cost * ticks + config.anchor_cost * moved
 
 
-def _logp_entropy(logits, action):
+def branch_mask(one_lever: bool, state: pcg.PCGState) -> jax.Array:
+    """``float32[..., 4]``: the branches a policy decides in ``state`` — all four, or with
+    ``one_lever`` only ``state.lever`` (the others are held at ``pcg.NOOP_ACTION``)."""
+    if not one_lever:
+        return jnp.ones(state.lever.shape + (pcg.N_PARAMS,), jnp.float32)
+    return jax.nn.one_hot(state.lever, pcg.N_PARAMS)
+
+
+def masked_action(action: jax.Array, branches: jax.Array) -> jax.Array:
+    """``action`` (``int32[..., 4]``) with the branches outside ``branches`` set to no change."""
+    return jnp.where(branches > 0, action, pcg.NOOP_ACTION).astype(jnp.int32)
+
+
+def _logp_entropy(logits, action, branches):
     lp = jax.nn.log_softmax(logits)
-    logp = jnp.take_along_axis(lp, action[..., None], -1)[..., 0].sum(-1)
-    ent = -(jnp.exp(lp) * lp).sum(-1).sum(-1)
+    logp = (jnp.take_along_axis(lp, action[..., None], -1)[..., 0] * branches).sum(-1)
+    ent = (-(jnp.exp(lp) * lp).sum(-1) * branches).sum(-1)
     return logp, ent
 
 
@@ -196,12 +215,13 @@ def make_train(config: Config):
             obs, st = carry
             ka, ke = jax.random.split(k)
             logits, value = net.apply(params, obs)
-            action = jax.random.categorical(ka, logits).astype(jnp.int32)
-            logp, _ = _logp_entropy(logits, action)
+            branches = branch_mask(config.one_lever, st)
+            action = masked_action(jax.random.categorical(ka, logits), branches)
+            logp, _ = _logp_entropy(logits, action, branches)
             obs2, st2, r, done, info = jax.vmap(lambda kk, s, a: pcg.step_autoreset(kk, s, a, p))(
                 jax.random.split(ke, config.n_envs), st, action)
             shaped = (r - edit_penalty(config, action, st, st2) * info["valid"]) * config.reward_scale
-            tr = Transition(obs, action, logp, value, shaped, done, info["valid"])
+            tr = Transition(obs, action, branches, logp, value, shaped, done, info["valid"])
             ended = done & info["valid"]
             return (obs2, st2), (tr, ended, info["final_error"], info["edits"], info["reached"], r)
 
@@ -222,7 +242,7 @@ def make_train(config: Config):
 
         def loss_fn(params, tr, adv, ret):
             logits, v = net.apply(params, tr.obs)
-            logp, ent = _logp_entropy(logits, tr.action)
+            logp, ent = _logp_entropy(logits, tr.action, tr.branches)
             w = tr.valid.astype(jnp.float32)
             wsum = jnp.maximum(w.sum(), 1.0)
             mean = lambda x: (x * w).sum() / wsum
@@ -268,13 +288,14 @@ def make_train(config: Config):
 
 
 @cache
-def make_policy(hidden: tuple, greedy: bool = False, temperature: float = 1.0):
+def make_policy(hidden: tuple, greedy: bool = False, temperature: float = 1.0, one_lever: bool = False):
     """Generator policy ``policy(net_params, key, obs, state, params) -> int32[4]`` for ``pcg_metrics``
     (cached, so the same hashable function is reused and jit does not recompile).
 
     ``greedy`` takes the argmax of each branch; otherwise each branch is sampled from
     ``softmax(logits / temperature)`` (``temperature`` > 0; 1 = the trained policy, above 1 = more
-    random edits; on Benchmark 2 that did not raise diversity, see docs/RESULTS.md)."""
+    random edits; on Benchmark 2 that did not raise diversity, see docs/RESULTS.md). ``one_lever``
+    (a model trained with ``Config.one_lever``) edits only ``state.lever``."""
     if not temperature > 0:
         raise ValueError(f"temperature: value {temperature} must be > 0 (use greedy=True for argmax)")
     net = ActorCritic(tuple(hidden))
@@ -282,8 +303,10 @@ def make_policy(hidden: tuple, greedy: bool = False, temperature: float = 1.0):
     def policy(net_params, key, obs, state, params):
         logits, _ = net.apply(net_params, obs)
         if greedy:
-            return jnp.argmax(logits, -1).astype(jnp.int32)
-        return jax.random.categorical(key, logits / temperature).astype(jnp.int32)
+            action = jnp.argmax(logits, -1)
+        else:
+            action = jax.random.categorical(key, logits / temperature)
+        return masked_action(action, branch_mask(True, state)) if one_lever else action.astype(jnp.int32)
 
     return policy
 

@@ -43,6 +43,8 @@ def _args(argv=None):
     ap.add_argument("--favourite-weight", type=float, default=None,
                     help="edit preferences as one favourite parameter per episode with this weight in [0, 1], "
                          "the others (4 - w) / 3 (implies --edit-preferences)")
+    ap.add_argument("--one-lever", action="store_true", default=None,
+                    help="the policy edits only the parameter the env designates per step (drawn uniformly)")
     ap.add_argument("--ent-coef", type=float, default=None, help="entropy bonus coefficient")
     ap.add_argument("--pool-repeats", action="store_true", default=None,
                     help="re-measuring an unchanged skill pools its games (sharper win rate when holding)")
@@ -100,13 +102,14 @@ def _write_metrics(out: Path, start_update: int, metrics: dict, steps_per_update
 
 
 @cache
-def method_policy(hidden: tuple, greedy: bool = False, temperature: float = 1.0):
+def method_policy(hidden: tuple, greedy: bool = False, temperature: float = 1.0, one_lever: bool = False):
     """One generator policy for PPO, PCG-HR and PCG-RD, so that ``pm.generate`` compiles once per
     episode count rather than once per method: ``policy({"net": net_params, "method": int32[]}, key,
-    obs, state, params) -> int32[4]`` with method 0 = PPO (``make_policy(hidden, greedy, temperature)``),
+    obs, state, params) -> int32[4]`` with method 0 = PPO (``make_policy(hidden, greedy, temperature,
+    one_lever)``),
     1 = ``pcg.heuristic_policy``, 2 = ``pcg.random_policy``. ``method`` is not batched, so the
     ``lax.switch`` stays a conditional and only the chosen branch runs."""
-    ppo = make_policy(tuple(hidden), greedy, temperature)
+    ppo = make_policy(tuple(hidden), greedy, temperature, one_lever)
 
     def policy(pp, key, obs, state, params):
         return jax.lax.switch(pp["method"], [
@@ -131,7 +134,7 @@ def evaluate(key, config, runner_params, labels, args) -> dict:
 
     Returns a dict of per-method ``generate`` outputs (numpy arrays pooled over groups)."""
     p = env_params(config).replace(n_games=args.eval_gen_games)  # the training env; targets come from generate
-    policy = method_policy(tuple(config.hidden), args.greedy, args.temperature)
+    policy = method_policy(tuple(config.hidden), args.greedy, args.temperature, config.one_lever)
     n_seeds = max(s for _, s in labels) + 1
     eps = max(1, args.eval_episodes // n_seeds)
     parts = []
@@ -177,7 +180,7 @@ def main(argv=None) -> None:
                         lr=args.lr, edit_cost=args.edit_cost, pool_repeats=args.pool_repeats,
                         ent_coef=args.ent_coef, anchor_cost=args.anchor_cost,
                         edit_preferences=(args.edit_preferences or args.favourite_weight is not None) or None,
-                        favourite_weight=args.favourite_weight)
+                        favourite_weight=args.favourite_weight, one_lever=args.one_lever or None)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps({**vars(args), "config": config.__dict__}, default=str, indent=1))

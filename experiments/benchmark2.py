@@ -17,8 +17,8 @@ one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
 
 Variants beyond the paper's protocol (each recorded in ``config.json``): ``--pool-repeats`` (the
 generation environment pools the games of an unchanged skill, for all three generators),
-``--edit-cost``, ``--anchor-cost``, ``--edit-preferences``, ``--favourite-weight``, ``--one-lever``, ``--ent-coef``
-and ``--total-steps`` (PPO learner), ``--seeds``, ``--episodes``.
+``--edit-cost``, ``--anchor-cost``, ``--edit-preferences``, ``--favourite-weight``, ``--one-lever``,
+``--goal-cost``, ``--ent-coef`` and ``--total-steps`` (PPO learner), ``--seeds``, ``--episodes``.
 
 The last stdout line is the JSON summary (also ``summary.json``).
 """
@@ -120,6 +120,8 @@ def _parse(argv=None) -> argparse.Namespace:
     ap.add_argument("--favourite-weight", type=float, help="PPO learner: the edit preferences are one favourite "
                     "parameter per episode with this weight in [0, 1], the others (4 - w) / 3 (implies "
                     "--edit-preferences)")
+    ap.add_argument("--goal-cost", type=float, help="PPO learner penalty per squared tick of distance to a "
+                    "random corner of the parameter box drawn per episode and observed (a diversity term; 0 = off)")
     ap.add_argument("--one-lever", action="store_true", help="PPO policy: edit only the parameter the env "
                     "designates per step, drawn uniformly (as PCG-HR picks a random one; a diversity term)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
@@ -308,6 +310,7 @@ def main(argv=None) -> dict:
     prefs = a.edit_preferences or a.favourite_weight is not None
     ppo = {"edit_cost": a.edit_cost, "anchor_cost": a.anchor_cost, "edit_preferences": prefs or None,
            "favourite_weight": a.favourite_weight, "one_lever": a.one_lever or None,
+           "goal_cost": a.goal_cost,
            "ent_coef": a.ent_coef, "total_steps": a.total_steps,
            "pool_repeats": a.pool_repeats or None}
     scale = dataclasses.replace(scale, ppo={**scale.ppo, **{k: v for k, v in ppo.items() if v is not None}},

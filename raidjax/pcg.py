@@ -27,7 +27,10 @@ one); a learner charged by them learns to use whichever parameters are cheap, so
 the preferences varies the generated skills. ``observe_lever`` (opt-in) draws one designated
 parameter per edit, uniformly (``PCGState.lever``, observed one-hot); the environment does not
 enforce it, a learner may restrict itself to it (PCG-HR's random choice of parameter, kept
-outside the policy, so that no single parameter becomes the generator's habit).
+outside the policy, so that no single parameter becomes the generator's habit). ``observe_goal``
+(opt-in) draws a random corner of the parameter box per episode as a style goal
+(``PCGState.goal``, observed as the offset to it); a learner charged by the distance to it must
+reach the target with a skill near the goal, so random goals spread the generated skills.
 
 Shapes are for one episode; ``jax.vmap`` runs many generator episodes in parallel, each with
 its own batch of ``n_games`` playtests.
@@ -98,6 +101,9 @@ class PCGParams:
             the episode has one clearly cheap lever (static; ``None`` = the softmax draw).
         observe_lever: draw a designated parameter ("lever") uniformly at reset and after every
             edit and append it one-hot to the observation (static; off = lever 0, not observed).
+        observe_goal: draw a style goal per episode, a uniformly random corner of the parameter
+            box, and append the offset to it, min-max scaled (``(goal - skill) / (high - low)``,
+            in [-1, 1]), to the observation (static; off = the goal is the start skill, not observed).
     """
 
     game: Params
@@ -113,6 +119,7 @@ class PCGParams:
     edit_preferences: bool = struct.field(pytree_node=False, default=False)
     favourite_weight: float | None = struct.field(pytree_node=False, default=None)
     observe_lever: bool = struct.field(pytree_node=False, default=False)
+    observe_goal: bool = struct.field(pytree_node=False, default=False)
 
 
 @struct.dataclass
@@ -132,6 +139,8 @@ class PCGState:
             ``edit_preferences``); the environment only observes them, a learner may be charged by them.
         lever: ``int32[]`` the parameter designated for the next edit (0 unless ``observe_lever``);
             observed, not enforced.
+        goal: ``float32[4]`` the episode's style goal (a corner of the box with ``observe_goal``,
+            else the start skill); observed, a learner may be charged by the distance to it.
     """
 
     skill: jax.Array
@@ -144,6 +153,7 @@ class PCGState:
     start: jax.Array
     preferences: jax.Array
     lever: jax.Array
+    goal: jax.Array
 
 
 _BASE: list[Params] = []
@@ -161,14 +171,14 @@ def make_params(
     *, target: float | tuple[float, float] = (0.1, 0.7), n_games: int = 100, max_edits: int = 40,
     band: float = 0.02, strict_length: bool = False, observe_target: bool = True, pool_repeats: bool = False,
     observe_start: bool = False, edit_preferences: bool = False, favourite_weight: float | None = None,
-    observe_lever: bool = False,
+    observe_lever: bool = False, observe_goal: bool = False,
 ) -> PCGParams:
     """Build ``PCGParams`` on the host.
 
     Args:
         target: a fixed target win rate, or ``(low, high)`` to draw one uniformly per episode.
         n_games, max_edits, band, strict_length, observe_target, pool_repeats, observe_start,
-            edit_preferences, favourite_weight, observe_lever: see ``PCGParams``.
+            edit_preferences, favourite_weight, observe_lever, observe_goal: see ``PCGParams``.
 
     Returns:
         ``PCGParams``.
@@ -189,7 +199,7 @@ def make_params(
     return PCGParams(game=base_game(), target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
                      max_edits=max_edits, strict_length=strict_length, observe_target=observe_target,
                      pool_repeats=pool_repeats, observe_start=observe_start, edit_preferences=edit_preferences,
-                     favourite_weight=favourite_weight, observe_lever=observe_lever)
+                     favourite_weight=favourite_weight, observe_lever=observe_lever, observe_goal=observe_goal)
 
 
 def skill_params(game: Params, skill: jax.Array) -> Params:
@@ -234,7 +244,8 @@ def observe(state: PCGState, params: PCGParams) -> jax.Array:
     ``params.observe_target``, then ``sqrt(100 / games)`` when ``params.pool_repeats``, then the
     displacement from the start skill (scaled like the parameters, in [-1, 1]) when
     ``params.observe_start``, then the edit preferences / 4 when ``params.edit_preferences``, then
-    the lever one-hot when ``params.observe_lever``: ``float32[obs_size(params)]`` (4 to 19)."""
+    the lever one-hot when ``params.observe_lever``, then the offset to the goal when
+    ``params.observe_goal``: ``float32[obs_size(params)]`` (4 to 23)."""
     x = (state.skill - low()) / (high() - low())
     if params.observe_target:
         x = jnp.concatenate([x, jnp.stack([state.target, state.win_rate])])
@@ -247,12 +258,15 @@ def observe(state: PCGState, params: PCGParams) -> jax.Array:
         x = jnp.concatenate([x, state.preferences / N_PARAMS])
     if params.observe_lever:
         x = jnp.concatenate([x, jax.nn.one_hot(state.lever, N_PARAMS)])
+    if params.observe_goal:
+        x = jnp.concatenate([x, (state.goal - state.skill) / (high() - low())])
     return x.astype(jnp.float32)
 
 
 def obs_size(params: PCGParams) -> int:
-    """Length of the observation vector (4 to 19)."""
-    return (N_PARAMS * (1 + int(params.observe_start) + int(params.edit_preferences) + int(params.observe_lever))
+    """Length of the observation vector (4 to 23)."""
+    flags = params.observe_start, params.edit_preferences, params.observe_lever, params.observe_goal
+    return (N_PARAMS * (1 + sum(map(int, flags)))
             + 2 * int(params.observe_target) + int(params.pool_repeats))
 
 
@@ -287,7 +301,10 @@ def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None):
             favourite = jax.random.randint(k_pref, (), 0, N_PARAMS)
             prefs = jnp.where(jnp.arange(N_PARAMS) == favourite, w, (N_PARAMS - w) / (N_PARAMS - 1))
         prefs = prefs.astype(jnp.float32)
-    return skill, jnp.asarray(target, jnp.float32), prefs
+    goal = skill
+    if params.observe_goal:
+        goal = jnp.where(jax.random.bernoulli(jax.random.fold_in(key, 13), 0.5, (N_PARAMS,)), high(), low())
+    return skill, jnp.asarray(target, jnp.float32), prefs, goal
 
 
 def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) -> tuple[jax.Array, PCGState]:
@@ -302,11 +319,11 @@ def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) ->
         ``(obs, state)``: ``float32[obs_size]`` and ``PCGState``.
     """
     k_new, k_play = jax.random.split(key)
-    skill, target, prefs = _fresh(k_new, params, target)
+    skill, target, prefs, goal = _fresh(k_new, params, target)
     w = measure(k_play, params, skill)
     state = PCGState(skill=skill, target=target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
                      reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill, preferences=prefs,
-                     lever=_lever(k_new, params))
+                     lever=_lever(k_new, params), goal=goal)
     return observe(state, params), state
 
 
@@ -330,7 +347,7 @@ def advance(state: PCGState, skill: jax.Array, w: jax.Array, params: PCGParams) 
     reward = reward_fn(state.target, state.win_rate, w)
     new = PCGState(skill=skill, target=state.target, win_rate=w, edits=edits, done=done,
                    reached=state.reached | close, games=games, start=state.start, preferences=state.preferences,
-                   lever=state.lever)
+                   lever=state.lever, goal=state.goal)
     return new, reward
 
 
@@ -368,13 +385,13 @@ def step_autoreset(key: jax.Array, state: PCGState, action: jax.Array, params: P
         has ``info["valid"] = False``. ``info["final_error"]`` is ``|t - w|`` (meaningful where done).
     """
     k_new, k_play = jax.random.split(key)
-    fresh_skill, fresh_target, fresh_prefs = _fresh(k_new, params, None)
+    fresh_skill, fresh_target, fresh_prefs, fresh_goal = _fresh(k_new, params, None)
     skill = jnp.where(state.done, fresh_skill, apply_action(state.skill, action))
     w = measure(k_play, params, skill)
     edited, reward = advance(state, skill, w, params)
     started = PCGState(skill=skill, target=fresh_target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
                        reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill,
-                       preferences=fresh_prefs, lever=state.lever)
+                       preferences=fresh_prefs, lever=state.lever, goal=fresh_goal)
     new = jax.tree.map(lambda a, b: jnp.where(state.done, a, b), started, edited)
     new = new.replace(lever=_lever(key, params))
     reward = jnp.where(state.done, 0.0, reward)

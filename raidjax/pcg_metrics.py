@@ -43,7 +43,8 @@ def _generate(key, policy, policy_params, params: pcg.PCGParams, targets, episod
     _, _, state = jax.lax.while_loop(cond, body, (jnp.int32(0), obs, state))
     final = jax.vmap(lambda k, s: pcg.measure(k, params, s, eval_games))(jax.random.split(k_eval, n), state.skill)
     return {"target": t, "skill": state.skill, "win_rate": final, "gen_win_rate": state.win_rate,
-            "edits": state.edits, "reached": state.reached, "start": state.start, "preferences": state.preferences}
+            "edits": state.edits, "reached": state.reached, "start": state.start, "preferences": state.preferences,
+            "goal": state.goal}
 
 
 def generate(key: jax.Array, policy, params: pcg.PCGParams, *, policy_params=None, targets=TARGETS,
@@ -63,8 +64,9 @@ def generate(key: jax.Array, policy, params: pcg.PCGParams, *, policy_params=Non
         numpy dict over ``n = T * E`` episodes: ``target`` [n], ``skill`` [n, 4], ``win_rate`` [n]
         (``eval_games``-game win rate of the final skill), ``gen_win_rate`` [n] (the generator's
         last measurement), ``edits`` [n], ``reached`` [n] (the band was reached), ``start`` [n, 4]
-        (the episode's random start skill) and ``preferences`` [n, 4] (its edit preferences; ones
-        unless ``params.edit_preferences``).
+        (the episode's random start skill), ``preferences`` [n, 4] (its edit preferences; ones
+        unless ``params.edit_preferences``) and ``goal`` [n, 4] (its style goal; the start unless
+        ``params.observe_goal``).
     """
     out = _generate(key, policy, policy_params, params, jnp.asarray(targets, jnp.float32), episodes, eval_games)
     return {k: np.asarray(v) for k, v in jax.device_get(out).items()}

@@ -158,10 +158,12 @@ def rollout(key, state, params, actions):
 
 def pcg_state(skill=(10.0, 0.55, 1.0, 0.75), target=0.5, w=0.3, edits=0, games=4):
     """A hand-made ``raidjax.pcg.PCGState``: ``skill`` float32[4] (also the start), target, last
-    win rate ``w``, ``edits`` made, ``games`` behind ``w``; ones as preferences, lever 0."""
+    win rate ``w``, ``edits`` made, ``games`` behind ``w``; ones as preferences, lever 0, the skill
+    as goal."""
     from raidjax import pcg
 
     return pcg.PCGState(skill=jnp.asarray(skill, jnp.float32), target=jnp.float32(target), win_rate=jnp.float32(w),
                         edits=jnp.int32(edits), done=jnp.bool_(False), reached=jnp.bool_(False),
                         games=jnp.float32(games), start=jnp.asarray(skill, jnp.float32),
-                        preferences=jnp.ones(4, jnp.float32), lever=jnp.int32(0))
+                        preferences=jnp.ones(4, jnp.float32), lever=jnp.int32(0),
+                        goal=jnp.asarray(skill, jnp.float32))

@@ -96,7 +96,8 @@ def test_observation_modes():
 
 
 
-@pytest.mark.parametrize("field,value", [("anchor_cost", -1.0), ("edit_cost", -0.5), ("n_minibatches", 3)])
+@pytest.mark.parametrize("field,value", [("anchor_cost", -1.0), ("edit_cost", -0.5), ("goal_cost", -0.1),
+                                         ("n_minibatches", 3)])
 def test_ppo_config_rejects_bad_values_naming_the_field(field, value):
     from trainers.ppo_pcgrl import get_config
 
@@ -186,16 +187,17 @@ def test_diversity_on_hand_set():
     assert y == {"yield": 0.5, "edits_mean": 22.0, "edits_sd": 18.0}
 
 
-@pytest.mark.parametrize("pool,anchor,prefs,fav,lever", [(False, 0.0, False, None, False),
-                                                      (True, 1.0, True, None, False), (True, 0.0, True, 0.25, True)])
-def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor, prefs, fav, lever):
+@pytest.mark.parametrize("pool,anchor,prefs,fav,lever,goal", [(False, 0.0, False, None, False, 0.0),
+                                                           (True, 1.0, True, None, False, 0.0),
+                                                           (True, 0.0, True, 0.25, True, 0.5)])
+def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor, prefs, fav, lever, goal):
     import orbax.checkpoint as ocp
 
     from trainers.ppo_pcgrl import Config, make_policy, make_train
 
     cfg = Config(n_envs=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=(8,), n_games=2,
                  max_edits=2, pool_repeats=pool, anchor_cost=anchor, edit_preferences=prefs, edit_cost=1.0,
-                 favourite_weight=fav, one_lever=lever)
+                 favourite_weight=fav, one_lever=lever, goal_cost=goal)
     train = make_train(cfg)
     runner, metrics = jax.jit(train)(jax.random.key(0))
     assert metrics["reward"].shape == (2,) and np.isfinite(np.asarray(metrics["pg_loss"])).all()
@@ -210,8 +212,9 @@ def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, anchor, prefs, fa
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     policy = make_policy((8,), True, one_lever=lever)
     obs = pcg.observe(_state(), pcg.make_params(n_games=2, pool_repeats=pool, observe_start=cfg.observe_start,
-                                                 edit_preferences=prefs, observe_lever=lever))
-    assert obs.shape == (6 + pool + 4 * (anchor > 0) + 4 * prefs + 4 * lever,)
+                                                 edit_preferences=prefs, observe_lever=lever,
+                                                 observe_goal=goal > 0))
+    assert obs.shape == (6 + pool + 4 * (anchor > 0) + 4 * prefs + 4 * lever + 4 * (goal > 0),)
     a = policy(back["params"], jax.random.key(1), obs, _state(), None)
     assert a.shape == (4,) and a.dtype == jnp.int32
 

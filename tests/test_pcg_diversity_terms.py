@@ -170,3 +170,48 @@ def test_one_lever_policy_decides_and_is_scored_on_the_lever_only():
     assert float(ent) == pytest.approx(float(-(jnp.exp(lp[2]) * lp[2]).sum()), rel=1e-6)
     full, _ = _logp_entropy(logits, jnp.asarray([0, 4, 1, 3]), branch_mask(False, st))
     assert float(full) == pytest.approx(float(lp[0, 0] + lp[1, 4] + lp[2, 1] + lp[3, 3]), rel=1e-6)
+
+
+def test_goal_is_a_uniform_corner_observed_kept_and_renewed():
+    on, off = pcg.make_params(n_games=2, observe_goal=True), pcg.make_params(n_games=2)
+    keys = jax.random.split(jax.random.key(0), 400)
+    goals = np.asarray(jax.vmap(lambda k: pcg.reset(k, on)[1].goal)(keys))
+    high = goals == np.asarray(pcg.HIGH, np.float32)
+    assert (high | (goals == np.asarray(pcg.LOW, np.float32))).all()  # corners of the box
+    corner = high @ (2 ** np.arange(4))
+    assert np.bincount(corner, minlength=16).min() > 10  # all 16 corners, about 25 times each
+    assert abs(high.mean() - 0.5) < 0.05
+    o, st = pcg.reset(keys[0], on)
+    o_off, st_off = pcg.reset(keys[0], off)
+    np.testing.assert_array_equal(np.asarray(st.skill), np.asarray(st_off.skill))  # same skills and targets
+    np.testing.assert_array_equal(np.asarray(st_off.goal), np.asarray(st_off.skill))  # off: the start
+    assert o.shape == (pcg.obs_size(on),) == (10,)
+    span = np.asarray(pcg.HIGH) - np.asarray(pcg.LOW)
+    np.testing.assert_allclose(np.asarray(o[-4:]), (goals[0] - np.asarray(st.skill)) / span, atol=1e-6)
+    _, st1, _, _, _ = pcg.step(jax.random.key(1), st, jnp.full(4, 4, jnp.int32), on)
+    np.testing.assert_array_equal(np.asarray(st1.goal), goals[0])  # kept through edits
+    fresh = [pcg.step_autoreset(k, st1.replace(done=jnp.bool_(True)), jnp.full(4, 2, jnp.int32), on)[1].goal
+             for k in keys[1:9]]
+    assert any(not np.array_equal(np.asarray(g), goals[0]) for g in fresh)  # a new episode draws anew
+
+
+def test_goal_penalty_telescopes_to_the_change_of_distance_to_the_goal():
+    from trainers.ppo_pcgrl import Config, edit_penalty
+
+    cfg = Config(goal_cost=0.5)
+    goal = jnp.asarray(pcg.HIGH, jnp.float32).at[1].set(pcg.LOW[1])  # range, cast, coefficient high; cool low
+    st = _state(skill=(10.5, 0.55, 1.0, 0.75)).replace(goal=goal)
+    start_d2 = float(pcg.displacement(st.skill, goal))
+    total = 0.0
+    for a in ([4, 0, 4, 4], [3, 2, 2, 0], [0, 4, 2, 2]):  # toward, partly back, away
+        a = jnp.asarray(a, jnp.int32)
+        new = st.replace(skill=pcg.apply_action(st.skill, a))
+        step_cost = float(edit_penalty(cfg, a, st, new))
+        if a[0] == 4:  # every parameter moved a tick toward its goal: the step pays (a reward)
+            assert step_cost < 0
+        total += step_cost
+        st = new
+    assert total == pytest.approx(0.5 * (float(pcg.displacement(st.skill, goal)) - start_d2), rel=1e-4)
+    # by hand: the goal is 3 ticks from the start in every parameter (range 9.5 / (19/6), cool 0.05 /
+    # (0.1/6), cast 0.5 / (1/6), coefficient 0.25 / (0.5/6)), so d^2 = 4 * 9 = 36 at the start.
+    assert start_d2 == pytest.approx(36.0, rel=1e-4)

@@ -67,11 +67,17 @@ class Config:
     # drawn uniformly, observed), as PCG-HR edits a random one; the policy picks how far to move it
     # (or to hold). Keeps a learned generator from moving one favourite parameter in every episode.
     one_lever: bool = False
+    # learner-side style term: penalty per unit change of the squared distance, in ticks, to the
+    # episode's random corner goal (pcg.PCGParams.observe_goal, turned on by > 0); it telescopes to
+    # goal_cost * (d^2(final) - d^2(start)), so the generator is paid to end near its goal, and random
+    # goals spread its output toward the extremes of the skills that meet a target. 0 = off.
+    goal_cost: float = 0.0
 
     def __post_init__(self):
         batch = self.n_envs * self.n_steps
         for name, allowed, ok in (
                 ("edit_cost", ">= 0", self.edit_cost >= 0), ("anchor_cost", ">= 0", self.anchor_cost >= 0),
+                ("goal_cost", ">= 0", self.goal_cost >= 0),
                 ("ent_coef", ">= 0", self.ent_coef >= 0), ("lr", "> 0", self.lr > 0),
                 ("n_games", ">= 1", self.n_games >= 1),
                 ("n_minibatches", f"a divisor of n_envs * n_steps = {batch}",
@@ -135,7 +141,7 @@ def env_params(config: Config, target=None) -> pcg.PCGParams:
                         strict_length=config.strict_length, observe_target=config.observe_target,
                         pool_repeats=config.pool_repeats, observe_start=config.observe_start,
                         edit_preferences=config.edit_preferences, favourite_weight=config.favourite_weight,
-                        observe_lever=config.one_lever)
+                        observe_lever=config.one_lever, observe_goal=config.goal_cost > 0)
     if target is not None:
         target = jnp.asarray(target, jnp.float32)
         p = p.replace(target_low=target[0], target_high=target[1])
@@ -146,12 +152,14 @@ def edit_penalty(config: Config, action: jax.Array, old: pcg.PCGState, new: pcg.
     """Learner-side cost of one edit in env reward units: ``edit_cost`` per tick of ``action``
     (``int32[..., 4]``), weighted per parameter by ``old.preferences`` (ones by default), plus
     ``anchor_cost`` times the change of ``pcg.displacement`` from ``old`` to ``new`` (``PCGState``
-    with matching batch shape). Over an episode the anchor part sums to ``anchor_cost *
-    displacement(final skill)``. Returns ``float32[...]`` (meaningless on reset transitions, which
-    the learner masks)."""
+    with matching batch shape), plus ``goal_cost`` times the change of the squared distance to the
+    goal. Over an episode the anchor part sums to ``anchor_cost * displacement(final skill)`` and
+    the goal part to ``goal_cost`` times the final minus the start squared distance to the goal.
+    Returns ``float32[...]`` (meaningless on reset transitions, which the learner masks)."""
     ticks = (jnp.abs(jnp.asarray(pcg.TICK_FRACTIONS)[action]) * old.preferences).sum(-1)
     moved = pcg.displacement(new.skill, new.start) - pcg.displacement(old.skill, old.start)
-    return config.edit_cost * ticks + config.anchor_cost * moved
+    to_goal = pcg.displacement(new.skill, new.goal) - pcg.displacement(old.skill, old.goal)
+    return config.edit_cost * ticks + config.anchor_cost * moved + config.goal_cost * to_goal
 
 
 def branch_mask(one_lever: bool, state: pcg.PCGState) -> jax.Array:

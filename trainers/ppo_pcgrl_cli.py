@@ -43,6 +43,8 @@ def _args(argv=None):
     ap.add_argument("--favourite-weight", type=float, default=None,
                     help="edit preferences as one favourite parameter per episode with this weight in [0, 1], "
                          "the others (4 - w) / 3 (implies --edit-preferences)")
+    ap.add_argument("--goal-cost", type=float, default=None,
+                    help="learner penalty per squared tick of distance to a random corner goal per episode (diversity)")
     ap.add_argument("--one-lever", action="store_true", default=None,
                     help="the policy edits only the parameter the env designates per step (drawn uniformly)")
     ap.add_argument("--ent-coef", type=float, default=None, help="entropy bonus coefficient")
@@ -180,7 +182,8 @@ def main(argv=None) -> None:
                         lr=args.lr, edit_cost=args.edit_cost, pool_repeats=args.pool_repeats,
                         ent_coef=args.ent_coef, anchor_cost=args.anchor_cost,
                         edit_preferences=(args.edit_preferences or args.favourite_weight is not None) or None,
-                        favourite_weight=args.favourite_weight, one_lever=args.one_lever or None)
+                        favourite_weight=args.favourite_weight, one_lever=args.one_lever or None,
+                        goal_cost=args.goal_cost)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps({**vars(args), "config": config.__dict__}, default=str, indent=1))

@@ -7,7 +7,9 @@ PCG-HR (``ppo_pcgrl_cli.evaluate``), on the run's training environment (so PPO s
 preferences it was trained with). Reports per generator the mean absolute and the mean signed
 move of each parameter from the episode's random start to its final skill, in fractions of the
 parameter's span, overall and grouped by the episode's cheapest parameter when the run drew edit
-preferences. The last stdout line is one JSON object.
+preferences; with style goals (``--goal-cost``), also each parameter's mean final value (scaled to
+[0, 1]) in the episodes whose goal has it high and in those that have it low. The last stdout
+line is one JSON object.
 """
 
 from __future__ import annotations
@@ -26,8 +28,10 @@ from trainers.ppo_pcgrl_cli import evaluate
 
 def moves(gen: dict) -> dict:
     """Per-parameter ``abs`` and ``signed`` mean move (fractions of the span) of ``generate`` output
-    ``gen``, the mean error and edits, and ``by_cheapest`` (``{parameter: {"n", "abs"}}``) when the
-    preferences vary."""
+    ``gen``, the mean error and edits, ``by_cheapest`` (``{parameter: {"n", "abs"}}``) when the
+    preferences vary, and ``final_by_goal`` (``{"high": [4], "low": [4]}``, the mean scaled final
+    value per parameter over the episodes whose goal corner has that parameter high / low) when the
+    goals are corners rather than the starts."""
     span = np.asarray(pcg.HIGH) - np.asarray(pcg.LOW)
     move = (gen["skill"] - gen["start"]) / span
     out = {"error": float(np.abs(gen["win_rate"] - gen["target"]).mean()), "edits": float(gen["edits"].mean()),
@@ -37,6 +41,11 @@ def moves(gen: dict) -> dict:
         out["by_cheapest"] = {name: {"n": int((cheapest == i).sum()),
                                      "abs": np.abs(move[cheapest == i]).mean(0).round(3).tolist()}
                               for i, name in enumerate(pcg.PARAM_NAMES) if (cheapest == i).any()}
+    if "goal" in gen and not np.array_equal(gen["goal"], gen["start"]):
+        high = gen["goal"] >= np.asarray(pcg.HIGH)
+        final = (gen["skill"] - np.asarray(pcg.LOW)) / span
+        side = lambda m: [round(float(final[m[:, j], j].mean()), 3) if m[:, j].any() else None for j in range(4)]
+        out["final_by_goal"] = {"high": side(high), "low": side(~high)}
     return out
 
 

@@ -16,21 +16,14 @@ when ``|w - t| <= band`` after an edit (not checked at reset; off with ``strict_
 on an ended episode performs the reset (new skill, new target, its measurement) instead of an
 edit and reports ``info["valid"] = False`` (the learner masks that transition out).
 
-``pool_repeats`` (opt-in, beyond SPEC §10): re-measuring an unchanged skill pools its games, so
-a generator that holds a skill gets an ever sharper win rate (the 100-game SE, ≈ 0.05, is wider
-than the ±0.02 band). ``observe_start`` (opt-in) shows the generator how far it has moved from
-the episode's random start skill, which a learner can be charged for (``displacement``) to keep
-the variety of the random starts in its output. ``edit_preferences`` (opt-in) draws, per
-episode, how much the designer minds each parameter being edited (``PCGState.preferences``,
-mean 1, observed; with ``favourite_weight``, one favourite parameter per episode is the cheap
-one); a learner charged by them learns to use whichever parameters are cheap, so that varying
-the preferences varies the generated skills. ``observe_lever`` (opt-in) draws one designated
-parameter per edit, uniformly (``PCGState.lever``, observed one-hot); the environment does not
-enforce it, a learner may restrict itself to it (PCG-HR's random choice of parameter, kept
-outside the policy, so that no single parameter becomes the generator's habit). ``observe_goal``
-(opt-in) draws a random corner of the parameter box per episode as a style goal
-(``PCGState.goal``, observed as the offset to it); a learner charged by the distance to it must
-reach the target with a skill near the goal, so random goals spread the generated skills.
+Opt-in switches beyond SPEC §10, all off by default (``PCGParams`` documents each):
+``pool_repeats`` pools the games of a re-measured unchanged skill (the 100-game SE, ≈ 0.05, is
+wider than the ±0.02 band). The others exist for Benchmark 2's diversity: they draw or record
+per-episode context that a learner can be charged by (``trainers.ppo_pcgrl``), so that varying
+the context varies the generated skills: the start skill (``observe_start``, ``displacement``),
+edit preferences (``edit_preferences``, ``favourite_weight``), a designated parameter per edit
+(``observe_lever``) and a style goal at a corner of the box (``observe_goal``). Each draw has its
+own key stream, so skills, targets and playtests are those drawn without it.
 
 Shapes are for one episode; ``jax.vmap`` runs many generator episodes in parallel, each with
 its own batch of ``n_games`` playtests.

@@ -198,6 +198,11 @@ def test_b2_levers_moves_in_span_fractions_and_by_cheapest_parameter():
     assert out["by_cheapest"]["range"] == {"n": 1, "abs": [0.25, 0.0, 0.0, 0.0]}
     assert out["by_cheapest"]["cast_time"]["abs"] == [0.0, 0.0, 0.5, 0.0]
     assert "by_cheapest" not in moves({**gen, "preferences": np.ones((2, 4))})
+    assert "final_by_goal" not in moves({**gen, "goal": start})  # no style goals: the goal is the start
+    goal = np.array([pcg.HIGH, [pcg.LOW[0], pcg.HIGH[1], pcg.LOW[2], pcg.LOW[3]]])
+    by_goal = moves({**gen, "goal": goal})["final_by_goal"]
+    assert by_goal["high"] == [0.75, 0.5, 0.5, 0.5]  # episode 0 (range ends at 0.75) / both for cool time
+    assert by_goal["low"] == [0.5, None, 0.0, 0.5]  # episode 1 (cast ends at 0); no goal has cool time low
     first, second = _split(gen, 2)
     np.testing.assert_array_equal(second["skill"], skill[1:])
     np.testing.assert_array_equal(first["edits"], [2])

@@ -42,7 +42,7 @@ def moves(gen: dict) -> dict:
                                      "abs": np.abs(move[cheapest == i]).mean(0).round(3).tolist()}
                               for i, name in enumerate(pcg.PARAM_NAMES) if (cheapest == i).any()}
     if "goal" in gen and not np.array_equal(gen["goal"], gen["start"]):
-        high = gen["goal"] >= np.asarray(pcg.HIGH)
+        high = gen["goal"] > (np.asarray(pcg.LOW) + np.asarray(pcg.HIGH)) / 2  # corners: no float32-vs-bound test
         final = (gen["skill"] - np.asarray(pcg.LOW)) / span
         side = lambda m: [round(float(final[m[:, j], j].mean()), 3) if m[:, j].any() else None for j in range(4)]
         out["final_by_goal"] = {"high": side(high), "low": side(~high)}

@@ -41,7 +41,7 @@ from raidjax import pcg
 from raidjax import pcg_metrics as pm
 from raidjax.utils import fmt_seconds
 from trainers.ppo_pcgrl import Config, get_config, make_train
-from trainers.ppo_pcgrl_cli import _groups, evaluate, metric_rows
+from trainers.ppo_pcgrl_cli import _groups, evaluate, metric_rows, parse_signs
 
 METHODS = ("PPO", "PCG-HR", "PCG-RD")
 FIELDS = ("target", "skill", "win_rate", "gen_win_rate", "edits", "reached")
@@ -122,6 +122,9 @@ def _parse(argv=None) -> argparse.Namespace:
                     "--edit-preferences)")
     ap.add_argument("--goal-cost", type=float, help="PPO learner penalty per squared tick of distance to a "
                     "random corner of the parameter box drawn per episode and observed (a diversity term; 0 = off)")
+    ap.add_argument("--goal-axis", type=parse_signs, help="with --goal-cost: goals at the two ends of this style "
+                    "axis, 4 comma-separated signs in {-1,0,1} for range,cool_time,cast_time,coefficient "
+                    "(1,1,1,1 = heavy vs light skills) instead of independent corners")
     ap.add_argument("--one-lever", action="store_true", help="PPO policy: edit only the parameter the env "
                     "designates per step, drawn uniformly (as PCG-HR picks a random one; a diversity term)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
@@ -310,7 +313,7 @@ def main(argv=None) -> dict:
     prefs = a.edit_preferences or a.favourite_weight is not None
     ppo = {"edit_cost": a.edit_cost, "anchor_cost": a.anchor_cost, "edit_preferences": prefs or None,
            "favourite_weight": a.favourite_weight, "one_lever": a.one_lever or None,
-           "goal_cost": a.goal_cost,
+           "goal_cost": a.goal_cost, "goal_axis": a.goal_axis,
            "ent_coef": a.ent_coef, "total_steps": a.total_steps,
            "pool_repeats": a.pool_repeats or None}
     scale = dataclasses.replace(scale, ppo={**scale.ppo, **{k: v for k, v in ppo.items() if v is not None}},

@@ -18,12 +18,9 @@ edit and reports ``info["valid"] = False`` (the learner masks that transition ou
 
 Opt-in switches beyond SPEC §10, all off by default (``PCGParams`` documents each):
 ``pool_repeats`` pools the games of a re-measured unchanged skill (the 100-game SE, ≈ 0.05, is
-wider than the ±0.02 band). The others exist for Benchmark 2's diversity: they draw or record
-per-episode context that a learner can be charged by (``trainers.ppo_pcgrl``), so that varying
-the context varies the generated skills: the start skill (``observe_start``, ``displacement``),
-edit preferences (``edit_preferences``, ``favourite_weight``), a designated parameter per edit
-(``observe_lever``) and a style goal at a corner of the box (``observe_goal``). Each draw has its
-own key stream, so skills, targets and playtests are those drawn without it.
+wider than the ±0.02 band). The others draw per-episode context for Benchmark 2's diversity terms
+(``raidjax.pcg_context``; a learner, ``trainers.ppo_pcgrl``, is charged by it): the start skill,
+edit preferences, a designated parameter per edit and a style goal, each on its own key stream.
 
 Shapes are for one episode; ``jax.vmap`` runs many generator episodes in parallel, each with
 its own batch of ``n_games`` playtests.
@@ -37,6 +34,7 @@ import numpy as np
 from flax import struct
 
 import raidjax
+from raidjax import pcg_context as context
 from raidjax.content import with_player_skill
 from raidjax.types import Params
 
@@ -86,17 +84,19 @@ class PCGParams:
         observe_start: append the displacement from the episode's start skill, min-max scaled
             (``(skill - start) / (high - low)``, 4 values in [-1, 1]), to the observation (static;
             off = SPEC §10).
-        edit_preferences: draw per-parameter edit preferences per episode, ``4 * softmax(1.5 z)``
-            with ``z`` standard normal (mean 1), and append them divided by 4 to the observation
-            (static; off = all ones, not observed).
-        favourite_weight: with ``edit_preferences``, draw instead one favourite parameter per
-            episode, uniformly: it gets this weight, the other three ``(4 - w) / 3`` (mean 1), so
-            the episode has one clearly cheap lever (static; ``None`` = the softmax draw).
-        observe_lever: draw a designated parameter ("lever") uniformly at reset and after every
-            edit and append it one-hot to the observation (static; off = lever 0, not observed).
-        observe_goal: draw a style goal per episode, a uniformly random corner of the parameter
-            box, and append the offset to it, min-max scaled (``(goal - skill) / (high - low)``,
-            in [-1, 1]), to the observation (static; off = the goal is the start skill, not observed).
+        edit_preferences: draw per-episode edit weights (``pcg_context.draw_preferences``) and
+            append them / 4 to the observation (static; off = all ones, not observed).
+        favourite_weight: with ``edit_preferences``, one favourite parameter of this weight
+            instead of the softmax draw (static; ``None`` = softmax).
+        observe_lever: draw a designated parameter uniformly at reset and after every edit and
+            append it one-hot to the observation (static; off = lever 0, not observed).
+        observe_goal: draw a style goal per episode at a random corner of the box
+            (``pcg_context.draw_goal``) and append the scaled offset ``(goal - skill) / (high -
+            low)`` to the observation (static; off = the goal is the start skill, not observed).
+        goal_axis: with ``observe_goal``, 4 signs in {-1, 0, 1}: the goal is one end of this axis
+            (``(1, 1, 1, 1)``: "heavy" all high or "light" all low; two strengthening and two
+            weakening parameters, ``EASIER``, so both ends suit any target) (static; ``None`` =
+            independent corners).
     """
 
     game: Params
@@ -113,6 +113,7 @@ class PCGParams:
     favourite_weight: float | None = struct.field(pytree_node=False, default=None)
     observe_lever: bool = struct.field(pytree_node=False, default=False)
     observe_goal: bool = struct.field(pytree_node=False, default=False)
+    goal_axis: tuple[int, ...] | None = struct.field(pytree_node=False, default=None)
 
 
 @struct.dataclass
@@ -164,14 +165,14 @@ def make_params(
     *, target: float | tuple[float, float] = (0.1, 0.7), n_games: int = 100, max_edits: int = 40,
     band: float = 0.02, strict_length: bool = False, observe_target: bool = True, pool_repeats: bool = False,
     observe_start: bool = False, edit_preferences: bool = False, favourite_weight: float | None = None,
-    observe_lever: bool = False, observe_goal: bool = False,
+    observe_lever: bool = False, observe_goal: bool = False, goal_axis: tuple[int, ...] | None = None,
 ) -> PCGParams:
     """Build ``PCGParams`` on the host.
 
     Args:
         target: a fixed target win rate, or ``(low, high)`` to draw one uniformly per episode.
         n_games, max_edits, band, strict_length, observe_target, pool_repeats, observe_start,
-            edit_preferences, favourite_weight, observe_lever, observe_goal: see ``PCGParams``.
+            edit_preferences, favourite_weight, observe_lever, observe_goal, goal_axis: see ``PCGParams``.
 
     Returns:
         ``PCGParams``.
@@ -181,18 +182,14 @@ def make_params(
         raise ValueError(f"target: value {target} must lie in [0, 1] with low <= high")
     if n_games < 1 or max_edits < 1:
         raise ValueError(f"n_games={n_games}, max_edits={max_edits}: both must be >= 1")
-    if favourite_weight is not None:
-        if not edit_preferences:
-            raise ValueError(f"favourite_weight: value {favourite_weight} needs edit_preferences=True")
-        if not 0.0 <= favourite_weight <= 1.0:
-            raise ValueError(f"favourite_weight: value {favourite_weight} must lie in [0, 1] (the favourite "
-                             "parameter is the cheap one; the others weigh (4 - w) / 3)")
-        favourite_weight = float(favourite_weight)
+    favourite_weight, goal_axis = context.check(edit_preferences, favourite_weight, observe_goal, goal_axis,
+                                               PARAM_NAMES)
     f = lambda x: np.float32(x)
     return PCGParams(game=base_game(), target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
                      max_edits=max_edits, strict_length=strict_length, observe_target=observe_target,
                      pool_repeats=pool_repeats, observe_start=observe_start, edit_preferences=edit_preferences,
-                     favourite_weight=favourite_weight, observe_lever=observe_lever, observe_goal=observe_goal)
+                     favourite_weight=favourite_weight, observe_lever=observe_lever, observe_goal=observe_goal,
+                     goal_axis=goal_axis)
 
 
 def skill_params(game: Params, skill: jax.Array) -> Params:
@@ -264,19 +261,14 @@ def obs_size(params: PCGParams) -> int:
 
 
 def displacement(skill: jax.Array, start: jax.Array) -> jax.Array:
-    """Squared distance from the start skill in ticks, ``sum(((skill - start) / tick())**2)``:
-    ``float32[...]`` for ``float32[..., 4]`` inputs. Squared, so that moving several parameters a
-    little costs less than moving one a lot (the generator's output then varies in every
-    parameter, as the random starts do)."""
-    return jnp.sum(((skill - start) / tick()) ** 2, -1)
+    """Squared distance from ``start`` in ticks (``pcg_context.displacement``): ``float32[...]`` for
+    ``float32[..., 4]`` inputs."""
+    return context.displacement(skill, start, tick())
 
 
 def _lever(key: jax.Array, params: PCGParams) -> jax.Array:
-    """The next designated parameter, ``int32[]``: uniform with ``observe_lever`` (its own key
-    stream, so skills, targets and playtests stay those drawn without it), else 0."""
-    if not params.observe_lever:
-        return jnp.int32(0)
-    return jax.random.randint(jax.random.fold_in(key, 11), (), 0, N_PARAMS, jnp.int32)
+    """The next designated parameter ``int32[]``: uniform with ``observe_lever``, else 0."""
+    return context.draw_lever(jax.random.fold_in(key, 11), N_PARAMS) if params.observe_lever else jnp.int32(0)
 
 
 def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None):
@@ -285,18 +277,12 @@ def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None):
     if target is None:
         target = jax.random.uniform(k_target, (), minval=params.target_low, maxval=params.target_high)
     prefs = jnp.ones((N_PARAMS,), jnp.float32)
-    if params.edit_preferences:  # own key stream: skills and targets stay those drawn without it
-        k_pref = jax.random.fold_in(key, 7)
-        if params.favourite_weight is None:
-            prefs = N_PARAMS * jax.nn.softmax(1.5 * jax.random.normal(k_pref, (N_PARAMS,)))
-        else:
-            w = params.favourite_weight
-            favourite = jax.random.randint(k_pref, (), 0, N_PARAMS)
-            prefs = jnp.where(jnp.arange(N_PARAMS) == favourite, w, (N_PARAMS - w) / (N_PARAMS - 1))
-        prefs = prefs.astype(jnp.float32)
+    if params.edit_preferences:
+        prefs = context.draw_preferences(jax.random.fold_in(key, 7), N_PARAMS, params.favourite_weight)
     goal = skill
     if params.observe_goal:
-        goal = jnp.where(jax.random.bernoulli(jax.random.fold_in(key, 13), 0.5, (N_PARAMS,)), high(), low())
+        goal = context.draw_goal(jax.random.fold_in(key, 13), jax.random.fold_in(key, 17), low(), high(),
+                                 params.goal_axis)
     return skill, jnp.asarray(target, jnp.float32), prefs, goal
 
 

@@ -1,6 +1,6 @@
 """Tests of the opt-in diversity terms of content generation (beyond SPEC §10): the start-skill
 displacement, edit preferences, the favourite lever, the per-step designated lever, and the PPO
-generator's sampling temperature and one-lever policy."""
+generator's sampling temperature and one-lever policy; the style goal and its axis."""
 
 from __future__ import annotations
 
@@ -215,3 +215,52 @@ def test_goal_penalty_telescopes_to_the_change_of_distance_to_the_goal():
     # by hand: the goal is 3 ticks from the start in every parameter (range 9.5 / (19/6), cool 0.05 /
     # (0.1/6), cast 0.5 / (1/6), coefficient 0.25 / (0.5/6)), so d^2 = 4 * 9 = 36 at the start.
     assert start_d2 == pytest.approx(36.0, rel=1e-4)
+
+
+def test_goal_axis_draws_the_two_ends_and_leaves_unsigned_parameters_free():
+    keys = jax.random.split(jax.random.key(3), 400)
+
+    def goals(axis):
+        p = pcg.make_params(n_games=2, observe_goal=True, goal_axis=axis)
+        return np.asarray(jax.vmap(lambda k: pcg.reset(k, p)[1].goal)(keys)) == np.asarray(pcg.HIGH, np.float32)
+
+    heavy = goals((1, 1, 1, 1))
+    assert (heavy.all(1) | (~heavy).all(1)).all()  # all high ("heavy") or all low ("light")
+    assert abs(heavy[:, 0].mean() - 0.5) < 0.08
+    mixed = goals((1, 0, -1, 1))
+    assert (mixed[:, 0] == mixed[:, 3]).all() and (mixed[:, 0] != mixed[:, 2]).all()  # tied ends, -1 reversed
+    for end in (True, False):  # cool time (sign 0) keeps its own coin at either end
+        assert 0.35 < mixed[mixed[:, 0] == end, 1].mean() < 0.65
+    on = pcg.make_params(n_games=2, observe_goal=True, goal_axis=(1, 1, 1, 1))
+    st, st_off = pcg.reset(keys[0], on)[1], pcg.reset(keys[0], pcg.make_params(n_games=2))[1]
+    np.testing.assert_array_equal(np.asarray(st.skill), np.asarray(st_off.skill))  # own key stream
+    np.testing.assert_array_equal(np.asarray(st.win_rate), np.asarray(st_off.win_rate))
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    ({"goal_axis": (1, 1, 1, 1)}, r"goal_axis: value \(1, 1, 1, 1\) needs observe_goal=True"),
+    ({"observe_goal": True, "goal_axis": (1, 2, 1, 1)}, r"goal_axis: value \(1, 2, 1, 1\) must be 4 signs"),
+    ({"observe_goal": True, "goal_axis": (1, 1, 1)}, r"goal_axis: value \(1, 1, 1\) must be 4 signs")])
+def test_goal_axis_rejects_bad_values_naming_the_field(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        pcg.make_params(**kwargs)
+
+
+def test_goal_axis_in_the_learner_config_and_on_the_command_line():
+    import argparse
+
+    from trainers.ppo_pcgrl import Config, env_params
+    from trainers.ppo_pcgrl_cli import parse_signs
+
+    cfg = Config(goal_cost=0.5, goal_axis=[1, 0, -1, 1])  # as read back from JSON
+    assert cfg.goal_axis == (1, 0, -1, 1)
+    p = env_params(cfg)
+    assert p.observe_goal and p.goal_axis == (1, 0, -1, 1)
+    goal = jax.jit(lambda k: pcg.reset(k, p)[1].goal)(jax.random.key(0))  # hashable static field
+    assert goal.shape == (4,)
+    with pytest.raises(ValueError, match=r"goal_axis: value \(1, 1, 1, 1\) needs goal_cost > 0"):
+        Config(goal_axis=(1, 1, 1, 1))
+    assert parse_signs("1,1,-1,0") == (1, 1, -1, 0)
+    for bad in ("1,1,1", "2,0,0,0", "a,b,c,d"):
+        with pytest.raises(argparse.ArgumentTypeError, match="goal axis: value"):
+            parse_signs(bad)

@@ -72,8 +72,15 @@ class Config:
     # goal_cost * (d^2(final) - d^2(start)), so the generator is paid to end near its goal, and random
     # goals spread its output toward the extremes of the skills that meet a target. 0 = off.
     goal_cost: float = 0.0
+    # env: with goal_cost > 0, draw the goal as one end of this style axis (pcg.PCGParams.goal_axis,
+    # 4 signs; (1, 1, 1, 1) = heavy vs light skills) instead of an independent corner. None = corners.
+    goal_axis: tuple | None = None
 
     def __post_init__(self):
+        if self.goal_axis is not None:  # JSON gives a list; the env needs a hashable static field
+            object.__setattr__(self, "goal_axis", tuple(self.goal_axis))
+            if self.goal_cost <= 0:
+                raise ValueError(f"goal_axis: value {self.goal_axis} needs goal_cost > 0")
         batch = self.n_envs * self.n_steps
         for name, allowed, ok in (
                 ("edit_cost", ">= 0", self.edit_cost >= 0), ("anchor_cost", ">= 0", self.anchor_cost >= 0),
@@ -141,7 +148,8 @@ def env_params(config: Config, target=None) -> pcg.PCGParams:
                         strict_length=config.strict_length, observe_target=config.observe_target,
                         pool_repeats=config.pool_repeats, observe_start=config.observe_start,
                         edit_preferences=config.edit_preferences, favourite_weight=config.favourite_weight,
-                        observe_lever=config.one_lever, observe_goal=config.goal_cost > 0)
+                        observe_lever=config.one_lever, observe_goal=config.goal_cost > 0,
+                        goal_axis=config.goal_axis)
     if target is not None:
         target = jnp.asarray(target, jnp.float32)
         p = p.replace(target_low=target[0], target_high=target[1])

@@ -24,6 +24,18 @@ from raidjax import pcg_metrics as pm
 from trainers.ppo_pcgrl import PRESETS, env_params, get_config, make_policy, make_train
 
 
+def parse_signs(text: str) -> tuple[int, ...]:
+    """``"1,0,-1,1"`` -> ``(1, 0, -1, 1)`` (an argparse type for ``--goal-axis``): 4 signs in {-1, 0, 1}."""
+    try:
+        signs = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        signs = ()
+    if len(signs) != pcg.N_PARAMS or any(v not in (-1, 0, 1) for v in signs):
+        raise argparse.ArgumentTypeError(f"goal axis: value {text!r} must be {pcg.N_PARAMS} comma-separated signs "
+                                         f"in {{-1, 0, 1}} for {','.join(pcg.PARAM_NAMES)}")
+    return signs
+
+
 def _args(argv=None):
     ap = argparse.ArgumentParser(description="PPO-PCGRL on raidjax.pcg")
     ap.add_argument("--preset", choices=sorted(PRESETS), default="cpu")
@@ -45,6 +57,9 @@ def _args(argv=None):
                          "the others (4 - w) / 3 (implies --edit-preferences)")
     ap.add_argument("--goal-cost", type=float, default=None,
                     help="learner penalty per squared tick of distance to a random corner goal per episode (diversity)")
+    ap.add_argument("--goal-axis", type=parse_signs, default=None,
+                    help="with --goal-cost: goals at the two ends of this style axis, 4 comma-separated signs "
+                         "in {-1,0,1} for range,cool_time,cast_time,coefficient (1,1,1,1 = heavy vs light)")
     ap.add_argument("--one-lever", action="store_true", default=None,
                     help="the policy edits only the parameter the env designates per step (drawn uniformly)")
     ap.add_argument("--ent-coef", type=float, default=None, help="entropy bonus coefficient")
@@ -183,7 +198,7 @@ def main(argv=None) -> None:
                         ent_coef=args.ent_coef, anchor_cost=args.anchor_cost,
                         edit_preferences=(args.edit_preferences or args.favourite_weight is not None) or None,
                         favourite_weight=args.favourite_weight, one_lever=args.one_lever or None,
-                        goal_cost=args.goal_cost)
+                        goal_cost=args.goal_cost, goal_axis=args.goal_axis)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps({**vars(args), "config": config.__dict__}, default=str, indent=1))

@@ -22,9 +22,11 @@ from trainers.ppo_pcgrl_cli import summarize
 
 
 def scores(gens: dict) -> dict:
-    """``{method: {"error", "pc1_sd"}}`` from ``ppo_pcgrl_cli.summarize``: mean error (episodes
-    with >= 2 edits) and mean PC1 SD (normalisation and PCA over all methods' kept skills)."""
-    return {m: {"error": v["controllability"]["err_mean"], "pc1_sd": v["pc1_sd_mean"]}
+    """``{method: {"error", "pc1_sd", "pc1_own_sd"}}`` from ``ppo_pcgrl_cli.summarize``: mean error
+    (episodes with >= 2 edits), mean PC1 SD (normalisation and PCA over all methods' kept skills) and
+    mean SD along each (method, target) group's own first axis."""
+    return {m: {"error": v["controllability"]["err_mean"], "pc1_sd": v["pc1_sd_mean"],
+                "pc1_own_sd": v["pc1_own_sd_mean"]}
             for m, v in summarize(gens).items()}
 
 
@@ -41,10 +43,11 @@ def per_seed(gens: dict, config: dict) -> list[dict]:
 
 
 def bootstrap(gens: dict, resamples: int, seed: int = 0) -> dict:
-    """95 % intervals of PPO minus PCG-HR (error, PC1 SD) and the share of resamples where PPO is
+    """95 % intervals of PPO minus PCG-HR (error, PC1 SD on the pooled axis and on each group's own)
+    and the share of resamples where PPO is
     not better."""
     rng = np.random.default_rng(seed)
-    d_err, d_pc1 = [], []
+    d_err, d_pc1, d_own = [], [], []
     for _ in range(resamples):
         res = {}
         for m, g in gens.items():
@@ -54,11 +57,14 @@ def bootstrap(gens: dict, resamples: int, seed: int = 0) -> dict:
         s = scores(res)
         d_err.append(s["PPO"]["error"] - s["PCG-HR"]["error"])
         d_pc1.append(s["PPO"]["pc1_sd"] - s["PCG-HR"]["pc1_sd"])
-    d_err, d_pc1 = np.asarray(d_err), np.asarray(d_pc1)
+        d_own.append(s["PPO"]["pc1_own_sd"] - s["PCG-HR"]["pc1_own_sd"])
+    d_err, d_pc1, d_own = np.asarray(d_err), np.asarray(d_pc1), np.asarray(d_own)
     return {"resamples": resamples, "error_diff_ci95": np.percentile(d_err, [2.5, 97.5]).tolist(),
             "share_error_not_lower": float((d_err >= 0).mean()),
             "pc1_diff_ci95": np.percentile(d_pc1, [2.5, 97.5]).tolist(),
-            "share_pc1_not_higher": float((d_pc1 <= 0).mean())}
+            "share_pc1_not_higher": float((d_pc1 <= 0).mean()),
+            "pc1_own_diff_ci95": np.percentile(d_own, [2.5, 97.5]).tolist(),
+            "share_pc1_own_not_higher": float((d_own <= 0).mean())}
 
 
 def main(argv=None) -> dict:

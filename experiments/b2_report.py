@@ -99,17 +99,18 @@ def diversity_rows(summ: dict) -> list[dict]:
         paper = PAPER_DIVERSITY.get(m, {})
         per = []
         for t in pm.TARGETS:
-            d = s["diversity"].get(f"{t:.1f}", {"n": 0, "param_sd": [np.nan] * 4, "pc1_sd": np.nan})
+            d = s["diversity"].get(f"{t:.1f}", {"n": 0, "param_sd": [np.nan] * 4, "pc1_sd": np.nan,
+                                                "pc1_own_sd": np.nan})
             vals = list(d["param_sd"]) + [d["pc1_sd"]]
-            per.append(vals)
+            per.append(vals + [d["pc1_own_sd"]])
             p = paper.get(t, (np.nan,) * 5)
             rows.append({"method": m, "target": t, "n_kept": d["n"], **dict(zip(DIV_COLS, vals, strict=True)),
-                         **{f"paper_{k}": v for k, v in zip(DIV_COLS, p, strict=True)}})
+                         "pc1_own": d["pc1_own_sd"], **{f"paper_{k}": v for k, v in zip(DIV_COLS, p, strict=True)}})
         a = np.asarray(per, float)
-        means = [float(np.nanmean(a[:, j])) if np.isfinite(a[:, j]).any() else np.nan for j in range(5)]
+        means = [float(np.nanmean(a[:, j])) if np.isfinite(a[:, j]).any() else np.nan for j in range(6)]
         p = paper.get("mean", (np.nan,) * 5)
         rows.append({"method": m, "target": "mean", "n_kept": sum(r["n_kept"] for r in rows if r["method"] == m),
-                     **dict(zip(DIV_COLS, means, strict=True)),
+                     **dict(zip(DIV_COLS, means[:5], strict=True)), "pc1_own": means[5],
                      **{f"paper_{k}": v for k, v in zip(DIV_COLS, p, strict=True)}})
     return rows
 
@@ -139,12 +140,14 @@ def _control_md(rows: list[dict]) -> str:
 
 def _diversity_md(rows: list[dict]) -> str:
     body = [[_t(r["target"]), r["method"], r["n_kept"]] + [f"{_f(r[k])} ({_f(r['paper_' + k])})" for k in DIV_COLS]
-            for r in sorted(rows, key=lambda r: (r["target"] == "mean", str(r["target"])))]
+            + [_f(r["pc1_own"])] for r in sorted(rows, key=lambda r: (r["target"] == "mean", str(r["target"])))]
     return ("## Diversity: SD of min-max-normalised parameters and of PC1, ours (paper)\n\n"
             + markdown_table(["target", "method", "n kept", "range", "cool time", "cast time", "coefficient",
-                              "PC1"], body)
+                              "PC1", "PC1 own axis"], body)
             + "\n\nSkills with |W_t − W_c| < 0.1; normalisation and PCA over the pooled kept skills of all "
-              "methods; `–` where fewer than 2 skills were kept. `mean` rows: mean over targets.")
+              "methods (SPEC §11); `PC1 own axis`: SD along the (method, target) group's own first axis, "
+              "a check that a lead does not come from the pooled axis; `–` where fewer than 2 skills were "
+              "kept. `mean` rows: mean over targets.")
 
 
 def _yield_md(rows: list[dict]) -> str:
@@ -239,6 +242,7 @@ def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300
     fin = lambda x: None if x is None or not np.isfinite(x) else float(x)
     return {"mean_error": {m: fin(s["controllability"]["err_mean"]) for m, s in summ.items()},
             "pc1_sd": {m: fin(s["pc1_sd_mean"]) for m, s in summ.items()},
+            "pc1_own_sd": {m: fin(s["pc1_own_sd_mean"]) for m, s in summ.items()},
             "yield": {m: s["yield"] for m, s in summ.items()},
             "edits": {m: s["edits_mean"] for m, s in summ.items()},
             "n_controllability": {m: s["controllability"]["n"] for m, s in summ.items()},

@@ -329,7 +329,7 @@ def main(argv=None) -> dict:
     rep = run.stage("report", lambda: b2_report.report(run, load_generated(run.out / "generated.npz"),
                                                           seed=a.seed, tsne_per_target=scale.tsne_per_target))
     summary = {"benchmark": 2, "scale": a.scale, "seed": a.seed,
-               **{k: rep[k] for k in ("mean_error", "pc1_sd", "yield", "edits", "n_controllability")},
+               **{k: rep.get(k) for k in ("mean_error", "pc1_sd", "pc1_own_sd", "yield", "edits", "n_controllability")},
                "paper": b2_report.paper_summary(),
                "train_steps": tr["steps"], "train_groups": tr["groups"], "episodes": ge["episodes"],
                "train_seconds": tr["seconds"], "generate_seconds": ge["seconds"]}

@@ -115,7 +115,10 @@ def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, thresh
         threshold: error cut-off.
 
     Returns:
-        ``{group: {"n", "param_sd": [4], "pc1_sd"}}`` (SD ddof 0; NaN for groups with < 2 kept).
+        ``{group: {"n", "param_sd": [4], "pc1_sd", "pc1_own_sd"}}`` (SD ddof 0; NaN for groups with
+        < 2 kept). ``pc1_own_sd`` is the SD along the group's own first principal axis (same
+        normalisation): the pooled axis follows whichever method spreads most, so it is reported
+        beside ``pc1_sd`` as a check that a lead does not come from the choice of axis.
     """
     skills, errors, groups = np.asarray(skills, float), np.asarray(errors), np.asarray(groups)
     keep = errors < threshold
@@ -131,7 +134,8 @@ def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, thresh
         m = groups[keep] == g
         n = int(m.sum())
         out[g] = {"n": n, "param_sd": (xn[m].std(0) if n > 1 else np.full(4, np.nan)).tolist(),
-                  "pc1_sd": float(proj[m].std()) if n > 1 else float("nan")}
+                  "pc1_sd": float(proj[m].std()) if n > 1 else float("nan"),
+                  "pc1_own_sd": float(((xn[m] - xn[m].mean(0)) @ first_pc(xn[m])).std()) if n > 1 else float("nan")}
     return out
 
 

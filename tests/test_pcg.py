@@ -182,9 +182,19 @@ def test_diversity_on_hand_set():
     # Kept set varies only in range: normalised ranges 0 and 1 in group a -> SD 0.5; PC1 = range.
     np.testing.assert_allclose(d["a"]["param_sd"], [0.5, 0, 0, 0], atol=1e-9)
     assert d["a"]["pc1_sd"] == pytest.approx(0.5)
-    assert np.isnan(d["b"]["pc1_sd"])
+    assert np.isnan(d["b"]["pc1_sd"]) and np.isnan(d["b"]["pc1_own_sd"])
     y = pm.yield_stats({"reached": np.array([True, False]), "edits": np.array([4, 40])})
     assert y == {"yield": 0.5, "edits_mean": 22.0, "edits_sd": 18.0}
+
+
+def test_pc1_on_the_pooled_axis_and_on_each_groups_own_axis():
+    # normalised (range, cool time): group a at (0, 0) and (1, 0), group b at (0.5, 0) and (0.5, 1).
+    # Pooled: var(range) = 0.125 < var(cool) = 0.1875, covariance 0, so the pooled axis is cool time:
+    # a has no spread along it, b has SD 0.5. Along its own axis each group has SD 0.5.
+    skills = np.array([[1.0, 0.5, 1.0, 0.7], [20.0, 0.5, 1.0, 0.7], [10.5, 0.5, 1.0, 0.7], [10.5, 0.6, 1.0, 0.7]])
+    d = pm.diversity(skills, np.zeros(4), np.array(["a", "a", "b", "b"]))
+    assert d["a"]["pc1_sd"] == pytest.approx(0.0, abs=1e-9) and d["b"]["pc1_sd"] == pytest.approx(0.5)
+    assert d["a"]["pc1_own_sd"] == pytest.approx(0.5) and d["b"]["pc1_own_sd"] == pytest.approx(0.5)
 
 
 @pytest.mark.parametrize("pool,anchor,prefs,fav,lever,goal", [(False, 0.0, False, None, False, 0.0),

@@ -184,6 +184,7 @@ def summarize(gens: dict) -> dict:
         d = [v for k, v in div.items() if k.startswith(name + "|") and np.isfinite(v["pc1_sd"])]
         out[name] = {"controllability": c, **pm.yield_stats(g),
                      "pc1_sd_mean": float(np.mean([v["pc1_sd"] for v in d])) if d else float("nan"),
+                     "pc1_own_sd_mean": float(np.mean([v["pc1_own_sd"] for v in d])) if d else float("nan"),
                      "param_sd_mean": np.nanmean([v["param_sd"] for v in d], 0).tolist() if d else None,
                      "diversity": {k.split("|")[1]: v for k, v in div.items() if k.startswith(name + "|")}}
     return out

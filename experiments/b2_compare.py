@@ -5,8 +5,8 @@
 Per seed: the PPO episodes of one training seed, re-pooled with the run's PCG-HR and PCG-RD
 episodes (the diversity normalisation and PCA are fitted on the pooled kept skills, as in the
 report). Bootstrap: episodes resampled within method x target, PCA refitted on each resample;
-the 95 % interval of PPO minus PCG-HR for the mean error and the mean PC1 SD. Prints one JSON
-object.
+the 95 % interval of PPO minus PCG-HR for the mean error and the mean PC1 SD, on the pooled axis
+and on each (method, target) group's own first axis. Prints one JSON object.
 """
 
 from __future__ import annotations
@@ -44,8 +44,7 @@ def per_seed(gens: dict, config: dict) -> list[dict]:
 
 def bootstrap(gens: dict, resamples: int, seed: int = 0) -> dict:
     """95 % intervals of PPO minus PCG-HR (error, PC1 SD on the pooled axis and on each group's own)
-    and the share of resamples where PPO is
-    not better."""
+    and the share of resamples where PPO is not better."""
     rng = np.random.default_rng(seed)
     d_err, d_pc1, d_own = [], [], []
     for _ in range(resamples):

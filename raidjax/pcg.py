@@ -286,6 +286,13 @@ def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None):
     return skill, jnp.asarray(target, jnp.float32), prefs, goal
 
 
+def _started(skill, target, w, prefs, goal, lever, params: PCGParams) -> PCGState:
+    """A new episode's state: ``skill`` (also its start) measured at ``w``, no edits yet."""
+    return PCGState(skill=skill, target=target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
+                    reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill, preferences=prefs,
+                    lever=lever, goal=goal)
+
+
 def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) -> tuple[jax.Array, PCGState]:
     """Start an episode: a skill drawn uniformly within the bounds, its measured win rate.
 
@@ -300,9 +307,7 @@ def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) ->
     k_new, k_play = jax.random.split(key)
     skill, target, prefs, goal = _fresh(k_new, params, target)
     w = measure(k_play, params, skill)
-    state = PCGState(skill=skill, target=target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
-                     reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill, preferences=prefs,
-                     lever=_lever(k_new, params), goal=goal)
+    state = _started(skill, target, w, prefs, goal, _lever(k_new, params), params)
     return observe(state, params), state
 
 
@@ -324,9 +329,7 @@ def advance(state: PCGState, skill: jax.Array, w: jax.Array, params: PCGParams) 
     if not params.strict_length:
         done = done | close
     reward = reward_fn(state.target, state.win_rate, w)
-    new = PCGState(skill=skill, target=state.target, win_rate=w, edits=edits, done=done,
-                   reached=state.reached | close, games=games, start=state.start, preferences=state.preferences,
-                   lever=state.lever, goal=state.goal)
+    new = state.replace(skill=skill, win_rate=w, edits=edits, done=done, reached=state.reached | close, games=games)
     return new, reward
 
 
@@ -368,9 +371,7 @@ def step_autoreset(key: jax.Array, state: PCGState, action: jax.Array, params: P
     skill = jnp.where(state.done, fresh_skill, apply_action(state.skill, action))
     w = measure(k_play, params, skill)
     edited, reward = advance(state, skill, w, params)
-    started = PCGState(skill=skill, target=fresh_target, win_rate=w, edits=jnp.int32(0), done=jnp.bool_(False),
-                       reached=jnp.bool_(False), games=jnp.float32(params.n_games), start=skill,
-                       preferences=fresh_prefs, lever=state.lever, goal=fresh_goal)
+    started = _started(skill, fresh_target, w, fresh_prefs, fresh_goal, state.lever, params)
     new = jax.tree.map(lambda a, b: jnp.where(state.done, a, b), started, edited)
     new = new.replace(lever=_lever(key, params))
     reward = jnp.where(state.done, 0.0, reward)

@@ -20,20 +20,22 @@ import numpy as np
 import orbax.checkpoint as ocp
 
 from raidjax import pcg
+from raidjax import pcg_context as context
 from raidjax import pcg_metrics as pm
 from trainers.ppo_pcgrl import PRESETS, env_params, get_config, make_policy, make_train
 
 
 def parse_signs(text: str) -> tuple[int, ...]:
-    """``"1,0,-1,1"`` -> ``(1, 0, -1, 1)`` (an argparse type for ``--goal-axis``): 4 signs in {-1, 0, 1}."""
+    """``"1,0,-1,1"`` -> ``(1, 0, -1, 1)`` (an argparse type for ``--goal-axis``); the signs are
+    checked by ``pcg.make_params``'s own rule, so the command line and the API reject the same input."""
     try:
         signs = tuple(int(v) for v in text.split(","))
     except ValueError:
-        signs = ()
-    if len(signs) != pcg.N_PARAMS or any(v not in (-1, 0, 1) for v in signs):
-        raise argparse.ArgumentTypeError(f"goal axis: value {text!r} must be {pcg.N_PARAMS} comma-separated signs "
-                                         f"in {{-1, 0, 1}} for {','.join(pcg.PARAM_NAMES)}")
-    return signs
+        signs = tuple(text.split(","))  # not integers: the check below names the rule
+    try:
+        return context.check(False, None, True, signs, pcg.PARAM_NAMES)[1]
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f"goal axis: value {text!r}: {err}") from None
 
 
 def _args(argv=None):

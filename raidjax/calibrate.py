@@ -1,10 +1,11 @@
 """Measure the PT-HR / PT-RD win-rate table and print it beside the paper's (SPEC §9).
 
-    python -m raidjax.calibrate --games 2000 [--json results.json]
+    python -m raidjax.calibrate --games 2000 [--seed S] [--rules reference|clean] [--substeps 5|1] [--json F]
 
 Every cell is ``--games`` games with the reference content at that skill range, all played in
-parallel; the tolerance check is the project's calibration contract (PT-HR within ±0.10,
-PT-RD within ±0.05).
+parallel (under the default ``"reference"`` rules each arena plays a discarded warm-up game
+first); the tolerance check is the project's calibration contract (PT-HR within ±0.10, PT-RD
+within ±0.05), made for the default rules at the reference tick (5 sub-steps).
 """
 
 from __future__ import annotations
@@ -29,19 +30,20 @@ TOLERANCE = {"heuristic": 0.10, "random": 0.05}
 LABEL = {"heuristic": "PT-HR", "random": "PT-RD"}
 
 
-def measure(n_games: int, seed: int = 0, ranges=RANGES) -> dict:
+def measure(n_games: int, seed: int = 0, ranges=RANGES, config: raidjax.EnvConfig | None = None) -> dict:
     """Win rates of PT-HR and PT-RD at each range.
 
     Args:
         n_games: games per cell.
         seed: PRNG seed.
         ranges: skill ranges (columns).
+        config: ``EnvConfig`` (rules, sub-steps); default ``EnvConfig()``, the reference rules.
 
     Returns:
         ``{policy: {"win_rate": [..], "stderr": [..], "mean_length": [..]}}`` for
         ``policy`` in ``("heuristic", "random")``, one entry per range.
     """
-    contents = [raidjax.make_params(skill_range=r) for r in ranges]
+    contents = [raidjax.make_params(skill_range=r, config=config) for r in ranges]
     batch = jax.tree.map(lambda *x: jnp.stack(x), *contents)  # one content per group of games
     out = {}
     for i, name in enumerate(("heuristic", "random")):
@@ -86,21 +88,31 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="PT-HR / PT-RD win rates vs the RaidEnv paper")
     ap.add_argument("--games", type=int, default=2000, help="games per cell (default 2000)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--rules", default="reference", help="rule set: reference (default) or clean")
+    ap.add_argument("--substeps", type=int, default=5, help="sub-steps per decision: 5 (default, the 0.02 s tick) or 1")
     ap.add_argument("--json", help="also write the results to this JSON file")
     ap.add_argument("--check", action="store_true", help="exit 1 if a cell is outside the tolerance")
     args = ap.parse_args(argv)
     if args.games < 1:
         ap.error(f"--games: value {args.games} must be >= 1")
+    if args.rules not in raidjax.RULE_SETS:
+        ap.error(f"--rules: value {args.rules!r}; allowed: {', '.join(raidjax.RULE_SETS)}")
+    if args.substeps not in (1, 5):
+        ap.error(f"--substeps: value {args.substeps}; allowed 1 or 5")
+    config = raidjax.EnvConfig.from_rules(args.rules, n_substeps=args.substeps)
     t0 = time.perf_counter()
-    print(f"Playing {args.games} games per cell, {len(RANGES) * 2} cells, on {jax.devices()[0].platform} ...",
+    print(f"Playing {args.games} games per cell, {len(RANGES) * 2} cells, rules {args.rules!r}, "
+          f"{args.substeps} sub-steps, seed {args.seed}, on {jax.devices()[0].platform} ...",
           file=sys.stderr, flush=True)
-    table = measure(args.games, args.seed)
+    table = measure(args.games, args.seed, config=config)
     seconds = time.perf_counter() - t0
+    print(f"Rules {args.rules!r}, {args.substeps} sub-steps per decision, seed {args.seed}.\n")
     print(markdown(table, args.games))
     games = args.games * len(RANGES) * 2
     print(f"{games} games in {seconds:.1f} s (compile included).")
     if args.json:
-        write_json_atomic(args.json, {"games_per_cell": args.games, "seconds": seconds, "table": table, "paper": PAPER})
+        write_json_atomic(args.json, {"games_per_cell": args.games, "seed": args.seed, "rules": args.rules,
+                                      "n_substeps": args.substeps, "seconds": seconds, "table": table, "paper": PAPER})
     ok = all(
         abs(w - p) <= TOLERANCE[n]
         for n, rows in table.items()

@@ -9,6 +9,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from raidjax import collide
 from raidjax.movement import HALF_ARENA, TICK, heading_vec, nearest_alive_player
 from raidjax.types import (
     HIT_ATTACK,
@@ -52,7 +53,9 @@ def skill_targets(state: State, params: Params) -> tuple[jnp.ndarray, jnp.ndarra
     enemy_t = state.target  # [U]
     t_oh = jax.nn.one_hot(enemy_t, dist.shape[0], dtype=bool)
     enemy_d = jnp.sum(jnp.where(t_oh, dist, 0.0), axis=1, keepdims=True)  # [U, 1]
-    enemy_ok = jnp.any(t_oh & state.alive[None], axis=1)[:, None] & (enemy_d <= sk.range)
+    # keep_dead_target: the reference boss casts at its target even after it died.
+    t_alive = jnp.any(t_oh & state.alive[None], axis=1) | params.config.keep_dead_target
+    enemy_ok = t_alive[:, None] & (enemy_d <= sk.range)
     same = params.team[:, None] == params.team[None]
     frac = state.hp / jnp.maximum(params.stats.max_hp, 1.0)
     cand = (same & state.alive[None])[:, None, :] & (dist[:, None, :] <= sk.range[..., None])  # [U,S,U]
@@ -105,47 +108,96 @@ def start_casts(state: State, params: Params, requested: jnp.ndarray) -> State:
     return state
 
 
-def advance_casts(state: State, params: Params, dt: float) -> tuple[State, jnp.ndarray]:
-    """Count casts down; the ones that complete fire. Returns the state and ``fired: bool[U, S]``.
+def expired(left: jnp.ndarray, params: Params) -> jnp.ndarray:
+    """Whether timers ``left`` (seconds, already counted down this tick) have run out.
 
-    Firing pays mana, uses a charge and starts the recharge timer (cool time starts when the
-    cast completes; one charge returns per cool time). A cast that completes when its caster
-    can no longer pay (other casts spent the mana meanwhile) fizzles like a cancelled cast: no
-    effect, no cost, no cooldown; slots pay in order, so mana never goes negative.
+    ``unity_timers``: the reference's ``for (r = T; r >= 0; r -= 0.02f)`` loop, so a timer ends on
+    the first tick it is below 0 (float32 rounding makes 0.1 s last 6 ticks, 0.5 s 25, 1.0 s 51).
+    Otherwise a timer of T seconds ends after T (within ``TIME_EPS`` of float32 rounding).
+    """
+    return left < 0.0 if params.config.unity_timers else left <= TIME_EPS
+
+
+def advance_casts(state: State, params: Params, n_ticks: int) -> tuple[State, jnp.ndarray]:
+    """Count casts and cooldowns down tick by tick; the casts that complete fire.
+
+    Returns the state and ``fired: int32[U, S]``, the tick (1..n_ticks) of this sub-step in which
+    each slot's cast completed, 0 where none did.
+
+    Firing pays mana and uses a charge; it starts a cooldown only if none is running for the
+    slot and the slot is below its charge (the reference's ``Cast`` / ``Cooldown`` coroutines).
+    A running cooldown adds one charge when it ends and starts over while the slot is still
+    below its charge. ``recharging`` is explicit state: under ``carry_cooldowns`` a cooldown
+    carried into the next episode adds its charge on top of the refilled ones (no cap).
+    A cast that completes when its caster can no longer pay (other casts spent the mana
+    meanwhile) fizzles like a cancelled cast; slots pay in order, so mana never goes negative.
     """
     sk = params.skills
-    cast_left = jnp.where(state.casting, state.cast_left - dt, state.cast_left)
-    done = state.casting & (cast_left <= TIME_EPS) & state.alive[:, None]
-    mana = state.mana
-    paid = []
-    for s in range(done.shape[1]):
-        ok = done[:, s] & (mana >= sk.cost[:, s])
-        mana = mana - jnp.where(ok, sk.cost[:, s], 0.0)
-        paid.append(ok)
-    fired = jnp.stack(paid, axis=-1)
+    unity = params.config.unity_timers
+    tick = jnp.float32(TICK)
     cool = sk.cool_time / haste_factor(params)
-    full = state.charges >= sk.charge
-    started = fired & full
-    charges = state.charges - fired.astype(jnp.int32)
-    # The cool time starts when the cast completed, which may be before the end of this
-    # sub-step (cast_left < 0 by the overshoot): credit the overshoot to the cool time.
-    recharge = jnp.where(started, cool + jnp.minimum(cast_left, 0.0), state.recharge_left)
-    recharge = jnp.where((charges < sk.charge) & ~started, recharge - dt, recharge)
-    back = (charges < sk.charge) & (recharge <= TIME_EPS)
-    charges = charges + back.astype(jnp.int32)
-    recharge = jnp.where(back & (charges < sk.charge), recharge + cool, recharge)
-    casting = state.casting & ~done & state.alive[:, None]
-    return state.replace(cast_left=cast_left, casting=casting, charges=charges,
+    alive = state.alive[:, None]
+    cast_left, casting, mana = state.cast_left, state.casting & alive, state.mana
+    charges, recharging, recharge = state.charges, state.recharging, state.recharge_left
+    fired = jnp.zeros(casting.shape, jnp.int32)
+    for tick_no in range(1, n_ticks + 1):
+        cast_left = jnp.where(casting, cast_left - tick, cast_left)
+        done = casting & expired(cast_left, params)
+        paid = []
+        for s in range(done.shape[1]):
+            ok = done[:, s] & (mana >= sk.cost[:, s])
+            mana = mana - jnp.where(ok, sk.cost[:, s], 0.0)
+            paid.append(ok)
+        now = jnp.stack(paid, axis=-1)
+        casting = casting & ~done
+        # Running cooldowns tick; one that ends adds its charge and starts over if still short.
+        recharge = jnp.where(recharging, recharge - tick, recharge)
+        back = recharging & expired(recharge, params)
+        charges = charges + back.astype(jnp.int32)
+        again = back & (charges < sk.charge)
+        # The reference restarts its loop at the full cool time; the clean game keeps the
+        # overshoot so that cool times that are not whole ticks keep their exact cadence.
+        recharge = jnp.where(again, cool + (0.0 if unity else recharge), recharge)
+        recharging = recharging & (~back | again)
+        # A skill with no cool time uses no charge (the reference's Activate: `if (cooltime > 0) nowCharged -= 1`).
+        used = now & (cool > 0)
+        charges = charges - used.astype(jnp.int32)
+        start = used & ~recharging & (charges < sk.charge)
+        overshoot = 0.0 if unity else jnp.minimum(cast_left, 0.0)
+        recharge = jnp.where(start, cool + overshoot, recharge)
+        recharging = recharging | start
+        fired = jnp.where(now, tick_no, fired)
+    return state.replace(cast_left=cast_left, casting=casting, charges=charges, recharging=recharging,
                          recharge_left=recharge, mana=mana), fired
 
 
-def fire(state: State, params: Params, fired: jnp.ndarray):
+def ticks_until_expired(left: jnp.ndarray, params: Params, n_ticks: int) -> jnp.ndarray:
+    """``int32[...]``: the tick (1..n_ticks) in which timers at ``left`` run out, ``n_ticks + 1`` if later."""
+    tick = jnp.float32(TICK)
+    when = jnp.full(left.shape, n_ticks + 1, jnp.int32)
+    for j in range(n_ticks, 0, -1):
+        left_j = left
+        for _ in range(j):
+            left_j = left_j - tick
+        when = jnp.where(expired(left_j, params), j, when)
+    return when
+
+
+def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
     """Deliver fired skills: spawn missiles/areas into the pool, return instant hits.
 
-    Returns ``(state, instant_hits: bool[U*S, U], instant_from: float32[U*S, 2])``.
+    Args:
+        fired_tick: ``int32[U, S]`` from ``advance_casts`` (tick of the sub-step a cast completed, or 0).
+        n_ticks: ticks in this sub-step.
+
+    Returns ``(state, instant_hits: bool[U*S, U], instant_from: float32[U*S, 2], flight: float32[M])``
+    where ``flight`` is how long each pool slot flies in this sub-step: the whole sub-step, or, for
+    a projectile spawned now, the ticks after the one it was fired in (the reference spawns in the
+    end-of-tick coroutine phase; a projectile first moves and collides in the next tick).
     The boss re-picks its target (nearest alive player) as its skills fire; straight missiles
     keep the facing the caster had.
     """
+    fired = fired_tick > 0
     u_n, s_n = fired.shape
     b = u_n - 1
     # Straight missiles fly along the facing the caster had while casting (the boss faced its
@@ -176,12 +228,11 @@ def fire(state: State, params: Params, fired: jnp.ndarray):
     src = jnp.argmax(assign, axis=0)  # [M] request feeding each slot
     owner = jnp.broadcast_to(jnp.arange(u_n)[:, None], (u_n, s_n))
     slot = jnp.broadcast_to(jnp.arange(s_n)[None], (u_n, s_n))
-    life = jnp.where(region, AREA_LIFETIME, MISSILE_LIFETIME)
-    # One packed gather instead of one scatter per field: [R, 9] -> [M, 9].
-    packed = jnp.concatenate(
-        [spawn_pos, direction, jnp.stack([kind, owner, slot, target], -1).astype(jnp.float32), life[..., None]],
-        axis=-1,
-    ).reshape(r, 9)
+    area_life = TICK if params.config.one_step_area else AREA_LIFETIME
+    life = jnp.where(region, area_life, MISSILE_LIFETIME)
+    # One packed gather instead of one scatter per field: [R, 10] -> [M, 10].
+    cols = jnp.stack([kind, owner, slot, target, fired_tick], -1).astype(jnp.float32)
+    packed = jnp.concatenate([spawn_pos, direction, cols, life[..., None]], axis=-1).reshape(r, 10)
     new = jnp.take(packed, src, axis=0)
     g = got[:, None]
     as_int = lambda x: jnp.round(x).astype(jnp.int32)  # noqa: E731
@@ -193,14 +244,16 @@ def fire(state: State, params: Params, fired: jnp.ndarray):
         owner=jnp.where(got, as_int(new[:, 5]), p.owner),
         slot=jnp.where(got, as_int(new[:, 6]), p.slot),
         target=jnp.where(got, as_int(new[:, 7]), p.target),
-        life=jnp.where(got, new[:, 8], p.life),
+        life=jnp.where(got, new[:, 9], p.life),
         hit_mask=p.hit_mask & ~g,
     )
     dropped = jnp.sum(req) - jnp.sum(got)
     inst = (fired & instant).reshape(r)
     instant_hits = inst[:, None] & jax.nn.one_hot(target.reshape(r), u_n, dtype=bool)
     instant_hits = instant_hits & state.alive[None]
-    return state.replace(projectiles=proj, dropped=state.dropped + dropped), instant_hits, caster.reshape(r, 2)
+    flight = jnp.where(got, n_ticks - new[:, 8], n_ticks) * TICK
+    state = state.replace(projectiles=proj, dropped=state.dropped + dropped)
+    return state, instant_hits, caster.reshape(r, 2), flight
 
 
 # Columns of the per-source effect table (``effect_table``).
@@ -252,8 +305,10 @@ def touchable(feats: jnp.ndarray, params: Params, alive: jnp.ndarray) -> jnp.nda
     return ((feats[:, F_ENEMY, None] > 0) & ~same | (feats[:, F_ALLY, None] > 0) & same) & alive[None]
 
 
-def move_projectiles(state: State, params: Params, table: jnp.ndarray, dt: float):
-    """Advance the pool one sub-step with swept collision.
+def move_projectiles(state: State, params: Params, table: jnp.ndarray, flight: jnp.ndarray):
+    """Advance the pool one sub-step with swept collision; slot m flies ``flight[m]`` seconds
+    (``fire``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
+    hits before the next).
 
     Returns ``(state, hits: bool[M, U], from_pos: float32[M, 2])`` where ``from_pos`` is the
     projectile's position before the move (the direction a hit comes from).
@@ -262,30 +317,34 @@ def move_projectiles(state: State, params: Params, table: jnp.ndarray, dt: float
     s_n = state.casting.shape[1]
     u_n = state.pos.shape[0]
     feats = pick(table, source_index(p.owner, p.slot, s_n))  # [M, F]
-    step = feats[:, F_SPEED] * dt
+    step = feats[:, F_SPEED] * flight
+    flying = p.live & (flight > 0)
     touch = touchable(feats, params, state.alive)  # [M, U]
-    reach = feats[:, F_RADIUS, None] + params.config.hurtbox_scale * params.stats.radius[None]
+    # Reference geometry (collide.py): bodies are squares of half side ``radius`` turning with
+    # their heading; a projectile touches one within its own radius of the square.
+    r_proj = feats[:, F_RADIUS]
+    half = params.stats.radius
     rel = state.pos[None] - p.pos[:, None]  # [M, U, 2]
     dist = jnp.linalg.norm(rel, axis=-1)
     t_oh = jax.nn.one_hot(p.target, u_n, dtype=bool)
 
-    # Homing: straight at the target's current position; hits only its target.
+    # Homing: straight at the target's current position; hits only its target, once within reach
+    # at the end of its move (it flies at the body's centre, so it cannot pass through it).
     tdist = jnp.sum(jnp.where(t_oh, dist, 0.0), axis=1)
-    treach = jnp.sum(jnp.where(t_oh, reach, 0.0), axis=1)
     t_alive = jnp.any(t_oh & state.alive[None], axis=1)
     trel = jnp.sum(jnp.where(t_oh[..., None], rel, 0.0), axis=1)
-    homing = p.live & (p.kind == PROJ_HOMING)
-    hit_h = homing & t_alive & (tdist - step <= treach)
+    homing = flying & (p.kind == PROJ_HOMING)
     pos_h = p.pos + trel / jnp.maximum(tdist, EPS)[:, None] * jnp.minimum(step, tdist)[:, None]
+    end_gap = collide.box_distance(collide.to_body_frame(pos_h[:, None] - state.pos[None], state.heading), half)
+    hit_h = homing & t_alive & (jnp.sum(jnp.where(t_oh, end_gap, 0.0), axis=1) <= r_proj)
     hits_h = hit_h[:, None] & t_oh
 
     # Straight: first touched unit along the segment; walls destroy it.
-    along = jnp.sum(rel * p.direction[:, None], axis=-1)
-    c = dist**2 - reach**2
-    disc = along**2 - c
-    t_in = jnp.where(c <= 0, 0.0, along - jnp.sqrt(jnp.maximum(disc, 0.0)))
-    cross = touch & (disc >= 0) & (t_in >= 0) & (t_in <= step[:, None])
-    straight = p.live & (p.kind == PROJ_STRAIGHT)
+    q0 = collide.to_body_frame(-rel, state.heading)
+    d0 = collide.to_body_frame(jnp.broadcast_to(p.direction[:, None], rel.shape), state.heading)
+    t_in = collide.ray_entry(q0, d0, half, r_proj)
+    cross = touch & (t_in <= step[:, None])
+    straight = flying & (p.kind == PROJ_STRAIGHT)
     first = jnp.argmin(jnp.where(cross, t_in, jnp.inf), axis=1)
     hit_s = straight & jnp.any(cross, axis=1)
     hits_s = hit_s[:, None] & jax.nn.one_hot(first, u_n, dtype=bool)
@@ -293,19 +352,22 @@ def move_projectiles(state: State, params: Params, table: jnp.ndarray, dt: float
     out = jnp.any(jnp.abs(pos_s) > HALF_ARENA, axis=-1)
 
     # Area: every touchable unit inside, nearest first, at most hit_count units in all.
-    area = p.live & (p.kind == PROJ_AREA)
-    inside = area[:, None] & touch & (dist <= reach) & ~p.hit_mask
+    area = flying & (p.kind == PROJ_AREA)
+    gap = collide.box_distance(q0, half)
+    inside = area[:, None] & touch & (gap <= r_proj[:, None]) & ~p.hit_mask
     order = jnp.arange(u_n)
     closer = (dist[:, None, :] < dist[:, :, None]) | (
         (dist[:, None, :] == dist[:, :, None]) & (order[None, None] < order[None, :, None])
     )
     rank = jnp.sum(closer & inside[:, None, :], axis=-1)
-    left = feats[:, F_HITS] - jnp.sum(p.hit_mask, axis=1)
+    # one_step_area: the reference's slash is switched off by its first hit.
+    cap = 1.0 if params.config.one_step_area else feats[:, F_HITS]
+    left = cap - jnp.sum(p.hit_mask, axis=1)
     hits_a = inside & (rank < left[:, None])
 
     hits = hits_h | hits_s | hits_a
     pos = jnp.where(homing[:, None], pos_h, jnp.where(straight[:, None], pos_s, p.pos))
-    life = p.life - dt
+    life = p.life - flight
     gone = (homing & (hit_h | ~t_alive)) | (straight & (hit_s | out)) | (life <= EPS)
     new = p.replace(live=p.live & ~gone, pos=pos, life=life, hit_mask=p.hit_mask | hits_a)
     return state.replace(projectiles=new), hits, p.pos
@@ -355,7 +417,7 @@ def resolve_hits(key, state: State, params: Params, table: jnp.ndarray, hits, so
 
     hp = state.hp - jnp.sum(damage, axis=0)
     alive = state.alive & (hp > 0)
-    hp = jnp.where(alive, jnp.minimum(hp + jnp.sum(heal, axis=0), st.max_hp), jnp.minimum(hp, 0.0))
+    hp = jnp.where(alive, jnp.minimum(hp + jnp.sum(heal, axis=0), st.max_hp), 0.0)  # HP floors at 0
     dealt = contract(by_owner.T, jnp.sum(damage, axis=1))
     dealt_to_boss = contract(by_owner.T, damage[:, -1])
     back_landed = harm & back & (f[:, F_TEAM, None] == 0)

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import catalogue
-from raidjax.types import N_SLOTS, EnvConfig, Params, Skills, Stats
+from raidjax.types import N_SLOTS, RULE_SETS, RULE_SWITCHES, EnvConfig, Params, Skills, Stats
 
 # name: (kind, player range, boss range, player default, boss default).
 # kind "int" values must be whole numbers. Neutral values reproduce the reference game.
@@ -40,7 +40,8 @@ STAT_SPECS: dict[str, tuple] = {
     "versatility": ("int", (0, 100), (0, 100), 0, 0),
     "mastery": ("int", (0, 100), (0, 100), 0, 0),
     "back_attack_multiplier": ("float", (1, 3), (1, 3), 1.2, 1.0),
-    "radius": ("float", (0.1, 3), (0.1, 3), 0.5, 1.5),
+    # Reference colliders (docs/GAME.md "Geometry"): a player's 1 x 1 box, the dragon's 2.25 box.
+    "radius": ("float", (0.1, 3), (0.1, 3), 0.5, 1.125),
 }
 
 # name: (kind, player range, boss range). Defaults live in catalogue.BASE_SKILL.
@@ -117,6 +118,7 @@ def make_params(
     player_overrides: Sequence[Mapping] | None = None,
     boss_overrides: Mapping | None = None,
     config: EnvConfig | None = None,
+    rules: str | None = None,
     **overrides,
 ) -> Params:
     """Build and validate the content of one arena.
@@ -128,7 +130,10 @@ def make_params(
         skill_range: if given, the range of every player's skill slot 1 (the experiment variable).
         player_overrides: one mapping per player of field overrides (see ``overrides``).
         boss_overrides: field overrides for the boss.
-        config: static ``EnvConfig`` (sub-steps, pool sizes, episode length).
+        config: static ``EnvConfig`` (sub-steps, pool sizes, episode length, rule switches);
+            default ``EnvConfig()``, the ``"reference"`` rules at 5 sub-steps.
+        rules: a named rule set, ``"reference"`` (the game the paper measured) or ``"clean"``
+            (the intended game); sets every rule switch of ``config``, keeping its other fields.
         **overrides: applied to every player: a stat name (``armor=50``), a skill parameter of
             slot k as ``**{"skill1.cool_time": 1.0}``, or ``skill2="heal"`` to put a skill preset in a slot.
 
@@ -170,10 +175,37 @@ def make_params(
         stats=Stats(**{k: jnp.asarray(v, jnp.float32) for k, v in stat_arrays.items()}),
         skills=Skills(**{k: jnp.asarray(v, _dtype(SKILL_SPECS[k][0])) for k, v in skill_arrays.items()}),
         team=jnp.asarray(team),
-        config=config or EnvConfig(),
+        config=check_config(config or EnvConfig(), rules),
     )
     validate_params(params, _raw=(stat_arrays, skill_arrays))
     return params
+
+
+def check_config(config: EnvConfig, rules: str | None = None) -> EnvConfig:
+    """Validate ``config`` (and apply the named ``rules``) on the host, before anything compiles.
+
+    Raises:
+        ValueError: naming the field, the value and what is allowed.
+    """
+    if not isinstance(config, EnvConfig):
+        raise ValueError(f"config: value {config!r} is not an EnvConfig")
+    if rules is not None:
+        if rules not in RULE_SETS:
+            raise ValueError(f"rules: value {rules!r} is not a rule set; allowed: {sorted(RULE_SETS)}")
+        config = config.with_rules(rules)
+    if config.n_substeps not in (1, 5):
+        raise ValueError(f"n_substeps: value {config.n_substeps!r}; allowed 1 or 5 (sub-steps per 5-tick decision)")
+    for name in ("max_projectiles", "obs_projectiles", "max_decisions"):
+        v = getattr(config, name)
+        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+            raise ValueError(f"{name}: value {v!r} must be a whole number >= 1")
+    if config.obs_projectiles > config.max_projectiles:
+        raise ValueError(f"obs_projectiles: value {config.obs_projectiles} exceeds max_projectiles "
+                         f"{config.max_projectiles}")
+    for name in RULE_SWITCHES:
+        if not isinstance(getattr(config, name), bool):
+            raise ValueError(f"{name}: value {getattr(config, name)!r} must be True or False")
+    return config
 
 
 def _dtype(kind: str):

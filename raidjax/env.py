@@ -1,8 +1,13 @@
-"""The public functional API of one arena: ``reset``, ``step`` and ``step_autoreset``.
+"""The public functional API of one arena: ``reset``, ``next_episode``, ``step``, ``step_autoreset``.
 
 Every function is pure and works under ``jax.jit``, ``jax.vmap`` (over keys, states and
 params) and ``lax.scan``. ``step`` never resets: once an episode is done, further steps
 leave the state unchanged and pay nothing, so a fixed-length scan plays each episode once.
+
+``reset`` starts a fresh arena's first episode. ``next_episode`` starts the same arena's next
+one: under the ``"reference"`` rules it carries what the reference build carries across its
+resets (running cooldowns; the boss's place and the projectiles in flight after the 2023 reset
+exception); under ``"clean"`` it equals ``reset``.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from raidjax.types import (
 
 PLAYER_SPAWN_Y, PLAYER_SPACING = -10.0, 3.0
 BOSS_SPAWN = (0.0, 8.0)
+TICKS_PER_DECISION = 5  # the reference's decision period: 5 ticks of 0.02 s
 DAMAGE_REWARD = 0.01
 WIN_REWARD = 1.0
 
@@ -61,6 +67,7 @@ def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
         cast_left=jnp.zeros((u_n, s_n)),
         casting=jnp.zeros((u_n, s_n), bool),
         charges=sk.charge,
+        recharging=jnp.zeros((u_n, s_n), bool),
         recharge_left=jnp.zeros((u_n, s_n)),
         basic_cooldown=jnp.zeros(u_n),
         target=jnp.full(u_n, n_players, jnp.int32),
@@ -88,20 +95,51 @@ def _cast_requests(actions: jnp.ndarray, s_n: int) -> jnp.ndarray:
     return jnp.concatenate([req, jnp.ones((1, s_n), bool)])
 
 
-def _substep(key, state: State, actions, params: Params, table, dt: float):
-    """Advance one arena by ``dt`` seconds. Returns ``(state, to_boss: f32[U], back: i32[U])``."""
+def _boss_still_ticks(state: State, params: Params, n_ticks: int) -> jnp.ndarray:
+    """``int32[]``: ticks of this sub-step at whose start the boss is still casting a cast in progress."""
+    b = state.pos.shape[0] - 1
+    fire_tick = combat.ticks_until_expired(state.cast_left[b], params, n_ticks)
+    return jnp.max(jnp.where(state.casting[b], jnp.minimum(fire_tick, n_ticks), 0))
+
+
+def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Params, n_ticks: int) -> State:
+    """Cut the boss's chase in a sub-step where it started a cast to the ticks it was not casting.
+
+    The reference boss chases, then tries its skills, every 0.02 s tick, and stands still from
+    the tick after a cast starts until it fires. With one tick per sub-step that is the order
+    of ``_substep``; with several, the boss moved for the whole sub-step before the cast
+    started, so its displacement is scaled to the start tick plus the ticks after the cast fired.
+    """
+    if n_ticks == 1:
+        return state
+    b = state.pos.shape[0] - 1
+    new = state.casting[b] & ~before.casting[b]
+    fire_tick = jnp.min(jnp.where(new, combat.ticks_until_expired(state.cast_left[b], params, n_ticks), n_ticks + 1))
+    moved = jnp.minimum(1 + jnp.maximum(n_ticks - fire_tick, 0), n_ticks)
+    started = jnp.any(new) & ~jnp.any(before.casting[b])
+    frac = jnp.where(started, moved / n_ticks, 1.0)
+    pos_b = start_pos[b] + frac * (state.pos[b] - start_pos[b])
+    return state.replace(pos=state.pos.at[b].set(pos_b))
+
+
+def _substep(key, state: State, actions, params: Params, table, n_ticks: int):
+    """Advance one arena by ``n_ticks`` 0.02 s ticks. Returns ``(state, to_boss: f32[U], back: i32[U])``."""
+    dt = n_ticks * movement.TICK
     old_pos = state.pos
     state = movement.move_players(state, actions, params, dt)
-    state = movement.move_boss(state, params, dt)
+    still = _boss_still_ticks(state, params, n_ticks)
+    state = movement.move_boss(state, params, dt, (n_ticks - still) * movement.TICK)
     state = movement.clamp_to_walls(state, params)
     state = movement.update_moving(state, old_pos, dt)
+    before = state
     state = combat.start_casts(state, params, _cast_requests(actions, state.casting.shape[1]))
-    state, fired = combat.advance_casts(state, params, dt)
-    state, inst_hits, inst_from = combat.fire(state, params, fired)
+    state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
+    state, fired_tick = combat.advance_casts(state, params, n_ticks)
+    state, inst_hits, inst_from, flight = combat.fire(state, params, fired_tick, n_ticks)
     proj = state.projectiles
-    state, proj_hits, proj_from = combat.move_projectiles(state, params, table, dt)
+    state, proj_hits, proj_from = combat.move_projectiles(state, params, table, flight)
     state, basic_hits = combat.basic_attacks(state, params, dt)
-    u_n, s_n = fired.shape
+    u_n, s_n = fired_tick.shape
     units = jnp.arange(u_n, dtype=jnp.int32)
     source = jnp.concatenate([
         combat.source_index(proj.owner, proj.slot, s_n),
@@ -113,7 +151,10 @@ def _substep(key, state: State, actions, params: Params, table, dt: float):
     state, to_boss, back = combat.resolve_hits(key, state, params, table, hits, source, from_pos)
     state = combat.regenerate(state, params, dt)
     state = state.replace(clock=state.clock + dt)
-    result = jnp.where(~state.alive[-1], WIN, jnp.where(~jnp.any(state.alive[:-1]), LOSS, RUNNING))
+    players_dead = ~jnp.any(state.alive[:-1])
+    # The reference checks the players before the boss: a tick that kills both is a loss.
+    boss_dead_result = jnp.where(players_dead & params.config.ties_are_losses, LOSS, WIN)
+    result = jnp.where(~state.alive[-1], boss_dead_result, jnp.where(players_dead, LOSS, RUNNING))
     return state.replace(result=jnp.int32(result)), to_boss, back
 
 
@@ -139,18 +180,21 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     """
     n_players = actions.shape[0]
     n_sub = params.config.n_substeps
-    dt = movement.DECISION / n_sub
+    n_ticks = TICKS_PER_DECISION // n_sub
     was_done = state.result != RUNNING
-    new = state
-    to_boss = jnp.zeros(n_players + 1)
-    back = jnp.zeros(n_players + 1, jnp.int32)
     table = combat.effect_table(params)
-    for i, k in enumerate(jax.random.split(key, n_sub)):
-        nxt, tb, bk = _substep(k, new, actions.astype(jnp.int32), params, table, dt)
-        running = new.result == RUNNING
-        new = _select(running, nxt, new) if i else nxt
-        to_boss = to_boss + jnp.where(running, tb, 0.0)
-        back = back + jnp.where(running, bk, 0)
+    actions = actions.astype(jnp.int32)
+
+    def substep(carry, k):
+        cur, to_boss, back = carry
+        nxt, tb, bk = _substep(k, cur, actions, params, table, n_ticks)
+        running = cur.result == RUNNING
+        return (_select(running, nxt, cur), to_boss + jnp.where(running, tb, 0.0),
+                back + jnp.where(running, bk, 0)), None
+
+    zeros = (jnp.zeros(n_players + 1), jnp.zeros(n_players + 1, jnp.int32))
+    # A scan compiles the sub-step once, whatever n_substeps is.
+    (new, to_boss, back), _ = jax.lax.scan(substep, (state, *zeros), jax.random.split(key, n_sub))
     decision = new.decision + 1
     result = jnp.where((new.result == RUNNING) & (decision >= params.config.max_decisions), DRAW, new.result)
     new = new.replace(decision=decision, result=jnp.int32(result))
@@ -170,8 +214,51 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     return observe(new, params, table), new, reward, done, info
 
 
+def next_episode(key: jax.Array, state: State, params: Params) -> tuple[Observation, State]:
+    """Start the arena's next episode after ``state`` (normally an ended one).
+
+    Equals ``reset(key, params)`` except for what the rules carry across the reference build's
+    resets (docs/GAME.md, "Rule sets"):
+
+    * ``carry_cooldowns``: every cooldown still running keeps its time left and adds a charge
+      (no cap) when it ends; units that died lose theirs (the reference deactivates dead players,
+      which stops their coroutines; the boss is never deactivated).
+    * ``reset_exception``: if any projectile is in flight, the boss stays where it ended (facing
+      the same way) and every live projectile but the one in the lowest pool slot keeps flying.
+
+    Args:
+        key: PRNG key (the new episode's draws, as in ``reset``).
+        state: the arena's ``State`` at the end of its previous episode.
+        params: the arena's ``Params``.
+
+    Returns:
+        ``(obs, state)`` of the new episode, shaped as ``reset``'s.
+    """
+    _, fresh = reset(key, params)
+    cfg = params.config
+    if not cfg.chains_episodes:
+        return observe(fresh, params), fresh
+    b = state.pos.shape[0] - 1
+    if cfg.carry_cooldowns:
+        kept = (state.alive | (jnp.arange(b + 1) == b))[:, None] & state.recharging
+        fresh = fresh.replace(recharging=kept, recharge_left=jnp.where(kept, state.recharge_left, fresh.recharge_left))
+    if cfg.reset_exception:
+        p = state.projectiles
+        in_flight = jnp.any(p.live)
+        first = jnp.argmax(p.live)
+        live = p.live & (jnp.arange(p.live.shape[0]) != first)
+        fresh = fresh.replace(
+            projectiles=p.replace(live=live),
+            pos=fresh.pos.at[b].set(jnp.where(in_flight, state.pos[b], fresh.pos[b])),
+            heading=fresh.heading.at[b].set(jnp.where(in_flight, state.heading[b], fresh.heading[b])),
+        )
+        # The boss's OnEpisodeBegin picks its target from where it stands.
+        fresh = fresh.replace(target=fresh.target.at[b].set(movement.nearest_alive_player(fresh)))
+    return observe(fresh, params), fresh
+
+
 def step_autoreset(key: jax.Array, state: State, actions: jax.Array, params: Params):
-    """``step``, then reset the arena if the episode ended (for training loops).
+    """``step``, then start the arena's next episode (``next_episode``) if this one ended.
 
     Returns the same tuple as ``step``; when ``done``, ``obs`` and ``state`` are those of the
     new episode and ``info`` also carries ``final_observation`` (the ``Observation`` the
@@ -180,6 +267,6 @@ def step_autoreset(key: jax.Array, state: State, actions: jax.Array, params: Par
     """
     k_step, k_reset = jax.random.split(key)
     obs, new, reward, done, info = step(k_step, state, actions, params)
-    obs_reset, state_reset = reset(k_reset, params)
+    obs_next, state_next = next_episode(k_reset, new, params)
     info = {**info, "final_observation": obs, "final_result": new.result}
-    return _select(done, obs_reset, obs), _select(done, state_reset, new), reward, done, info
+    return _select(done, obs_next, obs), _select(done, state_next, new), reward, done, info

@@ -128,17 +128,25 @@ def nearest_alive_player(state: State) -> jnp.ndarray:
     return jnp.argmin(jnp.where(state.alive[:-1], d, jnp.inf)).astype(jnp.int32)
 
 
-def move_boss(state: State, params: Params, dt: float) -> State:
-    """Re-target (if the target died), chase at ``move_speed`` unless casting or close, face the target."""
+def move_boss(state: State, params: Params, dt: float, moving_time: jnp.ndarray | float | None = None) -> State:
+    """Re-target, chase at ``move_speed`` for ``moving_time`` seconds (default ``dt``) unless casting
+    or close, face the target.
+
+    The boss re-picks its target (the nearest alive player) when it has none; under
+    ``keep_dead_target`` a dead target still counts as one (the reference's ``Chase`` re-targets
+    only on ``null``; dead players are deactivated, not destroyed). A cast in progress pauses
+    the chase; ``env`` passes the part of the sub-step the boss spends not casting.
+    """
     b = state.pos.shape[0] - 1
     target = state.target[b]
-    target = jnp.where(pick(state.alive, target), target, nearest_alive_player(state))
+    keep = params.config.keep_dead_target
+    target = jnp.where(pick(state.alive, target) | keep, target, nearest_alive_player(state))
     to_t = pick(state.pos, target) - state.pos[b]
     dist = jnp.linalg.norm(to_t)
     unit = to_t / jnp.maximum(dist, 1e-6)
-    casting = jnp.any(state.casting[b])
-    may_move = (dist >= BOSS_STOP_DISTANCE) & ~casting & state.alive[b] & jnp.any(state.alive[:b])
-    step = jnp.minimum(params.stats.move_speed[b] * dt, jnp.maximum(dist - BOSS_STOP_DISTANCE, 0.0))
+    moving_time = dt if moving_time is None else moving_time
+    may_move = (dist >= BOSS_STOP_DISTANCE) & state.alive[b] & jnp.any(state.alive[:b])
+    step = jnp.minimum(params.stats.move_speed[b] * moving_time, jnp.maximum(dist - BOSS_STOP_DISTANCE, 0.0))
     new_pos = state.pos[b] + jnp.where(may_move, step, 0.0) * unit
     facing = jnp.where(dist > 1e-6, jnp.arctan2(to_t[1], to_t[0]), state.heading[b])
     facing = jnp.where(state.alive[b], facing, state.heading[b])

@@ -8,7 +8,7 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
-from raidjax.env import reset, step
+from raidjax.env import next_episode, reset, step
 from raidjax.logs import HEATMAP_BINS, episode_summary, grid_cell
 from raidjax.observation import observe
 from raidjax.types import RUNNING, Params
@@ -38,19 +38,15 @@ def broadcast_params(params: Params, n_games: int) -> Params:
     return jax.tree.map(lambda x: jnp.repeat(x, n_games // g, axis=0), params)
 
 
-def _play_games(key: jax.Array, batch: Params, policy: Policy, n_games: int, fold=None, acc=None):
-    """Play ``n_games`` games (``batch``: params with a leading ``n_games`` axis) until every one
-    has ended. ``fold(acc, state) -> acc`` sees the reset state and the state after every
-    decision (e.g. to accumulate occupancy). Returns ``(final state, acc)``."""
-    fold = fold or (lambda a, _: a)
-    k_reset, k_play = jax.random.split(key)
-    _, state = jax.vmap(reset)(jax.random.split(k_reset, n_games), batch)
+def _play_until_done(key: jax.Array, state, batch: Params, policy: Policy, n_games: int, fold, acc):
+    """Step ``n_games`` arenas until every one's episode has ended; ``fold(acc, state)`` sees the
+    start state and the state after every decision. Returns ``(final state, acc)``."""
     obs = jax.vmap(observe)(state, batch)
     max_t = batch.config.max_decisions
 
     def play(carry):
         t, obs, state, acc = carry
-        keys = jax.random.split(jax.random.fold_in(k_play, t), 2 * n_games)  # raw or typed keys
+        keys = jax.random.split(jax.random.fold_in(key, t), 2 * n_games)  # raw or typed keys
         actions = jax.vmap(policy)(keys[:n_games], obs, state, batch)
         obs, state, _, _, _ = jax.vmap(step)(keys[n_games:], state, actions, batch)
         return t + 1, obs, state, fold(acc, state)
@@ -63,9 +59,31 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_games: int, fol
     return state, acc
 
 
+def _play_games(key: jax.Array, batch: Params, policy: Policy, n_games: int, fold=None, acc=None):
+    """Play ``n_games`` measured games, one per arena (``batch``: params with a leading
+    ``n_games`` axis). Under rules whose episodes depend on the one before
+    (``EnvConfig.chains_episodes``: the reference rules), every arena first plays a warm-up
+    game that is discarded and the measured game is its ``next_episode``, as the reference
+    build's arenas chain their games. ``fold(acc, state)`` sees only the measured games.
+    Returns ``(final state, acc)``."""
+    fold = fold or (lambda a, _: a)
+    k_reset, k_play = jax.random.split(key)
+    _, state = jax.vmap(reset)(jax.random.split(k_reset, n_games), batch)
+    if batch.config.chains_episodes:
+        k_warm, k_next = jax.random.split(jax.random.fold_in(key, 1))
+        state, _ = _play_until_done(k_warm, state, batch, policy, n_games, lambda a, _: a, None)
+        _, state = jax.vmap(next_episode)(jax.random.split(k_next, n_games), state, batch)
+    return _play_until_done(k_play, state, batch, policy, n_games, fold, acc)
+
+
 @partial(jax.jit, static_argnames=("policy", "n_games"))
 def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> dict[str, jax.Array]:
     """Play ``n_games`` games in parallel until every one has ended (win, loss or draw).
+
+    Under the ``"reference"`` rules an arena's games depend on the one before (carried
+    cooldowns, the 2023 reset exception), so every arena plays a discarded warm-up game first
+    and the measured game is its next episode (about twice the cost; see docs/GAME.md). Under
+    the ``"clean"`` rules every game is an arena's first.
 
     Args:
         key: PRNG key (typed or a legacy ``uint32[2]`` key).

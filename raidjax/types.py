@@ -31,25 +31,79 @@ TRIGGER_ACTIVE, TRIGGER_PASSIVE = 0, 1
 PROJ_HOMING, PROJ_STRAIGHT, PROJ_AREA = 0, 1, 2
 
 
+# Rule switches of ``EnvConfig`` (docs/GAME.md, "Rule sets", cites the reference source of each).
+RULE_SWITCHES = (
+    "carry_cooldowns", "keep_dead_target", "reset_exception", "one_step_area", "unity_timers", "ties_are_losses",
+)
+# Named rule sets: "reference" is the game the RaidEnv paper measured (the 2023 reference build,
+# quirks included); "clean" is the intended game (independent episodes, exact timers).
+RULE_SETS = {
+    "reference": dict.fromkeys(RULE_SWITCHES, True),
+    "clean": dict.fromkeys(RULE_SWITCHES, False),
+}
+
+
 @struct.dataclass
 class EnvConfig:
     """Static configuration (hashable; not a pytree leaf, so it never enters a vmap).
 
+    The defaults are the ``"reference"`` rule set at the reference's 0.02 s tick. Build other
+    rule sets with ``EnvConfig.from_rules("clean")`` or ``make_params(rules="clean")``; every
+    rule switch can also be set alone (``EnvConfig(carry_cooldowns=False)``) for ablations.
+
     Attributes:
-        n_substeps: simulation sub-steps per 0.1 s decision (1 or 5; 5 = the 0.02 s tick).
+        n_substeps: simulation sub-steps per 0.1 s decision: 5 (the reference's 0.02 s tick) or 1.
         max_projectiles: size M of the projectile pool of each arena.
         obs_projectiles: K, number of nearest hostile projectiles each player observes.
         max_decisions: episode limit in decisions (2000 = 200 s).
-        hurtbox_scale: projectiles and areas hit a unit within ``hurtbox_scale x radius`` of its
-            centre (plus the projectile's radius); bodies use the full radius against walls. The
-            calibration knob of docs/GAME.md (0.60 reproduces the paper's PT-HR win rates).
+        carry_cooldowns: a cooldown timer running when an episode ends keeps running in the
+            arena's next episode (``next_episode``) and then adds a charge with no cap; units that
+            died (were deactivated) lose their timers.
+        keep_dead_target: the boss chases, aims and casts at its target after it died, until its
+            next skill fires (then it re-picks the nearest alive player).
+        reset_exception: when any projectile is in flight at an episode's end, the boss starts
+            the next episode where it ended and every in-flight projectile but the first (lowest
+            pool slot) keeps flying.
+        one_step_area: an area (the boss's slash) exists for one 0.02 s tick and hits at most one
+            unit (the nearest inside it); otherwise it lingers 5 ticks and hits up to ``hit_count``.
+        unity_timers: cast and cooldown timers count down by float32 ``-= 0.02`` once per tick and
+            fire on the first tick they are below 0 (0.1 s lasts 6 ticks, 1.0 s 51); otherwise a
+            timer of T seconds lasts exactly T.
+        ties_are_losses: the boss and the last player dying in the same tick is a loss (else a win).
     """
 
-    n_substeps: int = 1
+    n_substeps: int = 5
     max_projectiles: int = 16
     obs_projectiles: int = 4
     max_decisions: int = 2000
-    hurtbox_scale: float = 0.60
+    carry_cooldowns: bool = True
+    keep_dead_target: bool = True
+    reset_exception: bool = True
+    one_step_area: bool = True
+    unity_timers: bool = True
+    ties_are_losses: bool = True
+
+    @classmethod
+    def from_rules(cls, rules: str = "reference", **fields) -> EnvConfig:
+        """The named rule set (``"reference"`` or ``"clean"``), then ``fields`` on top."""
+        return cls().with_rules(rules).replace(**fields)
+
+    def with_rules(self, rules: str) -> EnvConfig:
+        """This config with every rule switch set as in the named rule set; other fields kept."""
+        if rules not in RULE_SETS:
+            raise ValueError(f"rules: value {rules!r} is not a rule set; allowed: {sorted(RULE_SETS)}")
+        return self.replace(**RULE_SETS[rules])
+
+    @property
+    def rules(self) -> str:
+        """``"reference"``, ``"clean"`` or ``"custom"`` (any other mix of switches)."""
+        mine = {k: getattr(self, k) for k in RULE_SWITCHES}
+        return next((name for name, preset in RULE_SETS.items() if preset == mine), "custom")
+
+    @property
+    def chains_episodes(self) -> bool:
+        """Whether an arena's episodes depend on the one before (``next_episode`` differs from ``reset``)."""
+        return bool(self.carry_cooldowns or self.reset_exception)
 
 
 @struct.dataclass
@@ -151,8 +205,9 @@ class State:
     moving: jax.Array  # bool[U] moved faster than MOVING_SPEED in the last sub-step
     cast_left: jax.Array  # float32[U, S] seconds until a cast in progress fires
     casting: jax.Array  # bool[U, S] a cast of this slot is in progress
-    charges: jax.Array  # int32[U, S]
-    recharge_left: jax.Array  # float32[U, S] seconds until the next charge returns
+    charges: jax.Array  # int32[U, S] (may exceed the skill's charge under carry_cooldowns)
+    recharging: jax.Array  # bool[U, S] a cooldown timer runs (it adds a charge when it ends)
+    recharge_left: jax.Array  # float32[U, S] seconds until the running cooldown adds its charge
     basic_cooldown: jax.Array  # float32[U] seconds until the next basic attack
     target: jax.Array  # int32[U] current enemy target of each unit
     orbit_sign: jax.Array  # float32[U] +1 / -1: PT-HR's per-episode circling direction

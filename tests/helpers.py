@@ -1,8 +1,10 @@
 """Shared, compile-once helpers for the raidjax test suite.
 
-Every scenario uses the reference team size (3 players + the boss, 3 skill slots) and the
-default ``EnvConfig``, so the module-level jitted ``STEP`` / ``RESET`` compile once for the
-whole suite; only content *values* change between tests (no retracing).
+Every scenario uses the reference team size (3 players + the boss, 3 skill slots) and one
+``EnvConfig``, ``CLEAN1`` (the ``"clean"`` rules at one sub-step: exact timers, so expected
+decisions follow from SPEC times by hand), so the module-level jitted ``STEP`` / ``RESET``
+compile once for the whole suite; only content *values* change between tests (no retracing).
+The ``"reference"`` rule switches are tested in ``test_rules.py``.
 
 Expected numbers in the tests are derived by hand from SPEC.md, never copied from a run.
 """
@@ -26,6 +28,8 @@ TICK = 0.02
 DRAG = 0.92
 KEY = jax.random.key(0)
 
+CLEAN1 = raidjax.EnvConfig.from_rules("clean", n_substeps=1)
+
 RESET = jax.jit(raidjax.reset)
 STEP = jax.jit(raidjax.step)
 
@@ -34,7 +38,7 @@ STEP = jax.jit(raidjax.step)
 PASSIVE_BOSS = {"move_speed": 0.0, "skill1.range": 1.0, "skill2.range": 1.0}
 
 __all__ = [
-    "ACTION_HEURISTIC", "BOSS", "CAST_1", "DT", "DRAG", "KEY", "NOOP", "P", "PASSIVE_BOSS", "RESET",
+    "ACTION_HEURISTIC", "BOSS", "CAST_1", "CLEAN1", "DT", "DRAG", "KEY", "NOOP", "P", "PASSIVE_BOSS", "RESET",
     "STEP", "TICK", "T_ROLL", "acts", "events", "make", "rollout", "run", "scenario", "series",
 ]
 
@@ -43,6 +47,7 @@ def make(passive_boss: bool = True, boss_overrides: dict | None = None, **kw) ->
     """``make_params`` with (by default) a passive boss; extra boss overrides on top."""
     bo = dict(PASSIVE_BOSS) if passive_boss else {}
     bo.update(boss_overrides or {})
+    kw.setdefault("config", CLEAN1)
     return raidjax.make_params(boss_overrides=bo, **kw)
 
 

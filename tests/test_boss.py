@@ -63,20 +63,24 @@ def test_boss_frozen_while_casting_attack_2_which_fires_after_4_seconds():
     s = solo(p, (0.0, -4.0))
     _, hist = run(s, p, acts(NOOP), 42)
     pos = series(hist, lambda st: st.pos[BOSS])
-    # Decision 1: moves 0.6 (not casting yet), then starts the 4.0 s cast: frozen for 2..40.
-    assert pos[0][1] == pytest.approx(-0.6, abs=1e-5)
+    # Decision 1: chases in tick 1 (0.12 at 6 units/s), then starts the 4.0 s cast (200 ticks: it
+    # fires at the end of tick 200, decision 40): frozen for 2..40. The slash lands in the next
+    # tick (a projectile first acts in the tick after it is fired): decision 41.
+    assert pos[0][1] == pytest.approx(-0.12, abs=1e-5)
     np.testing.assert_allclose(pos[1:40], np.broadcast_to(pos[0], (39, 2)), atol=1e-6)
     hp0 = series(hist, lambda st: st.hp[0])
-    assert events(hp0, 100.0) == [40]  # 4.0 s cast
-    assert hp0[39] == 100.0 - 60.0  # int(1.2 x 50) = 60
+    assert events(hp0, 100.0) == [41]
+    assert hp0[40] == 100.0 - 60.0  # int(1.2 x 50) = 60
     assert pos[40][1] < pos[39][1] - 0.1  # moves again once the cast is over
 
 
 def test_boss_attack_2_cadence_cast_4_s_then_cool_7_s():
     p = make(passive_boss=False, boss_overrides={"skill1.range": 1.0}, max_hp=1000)
     _, hist = run(solo(p, (0.0, -4.0)), p, acts(NOOP), 152)
-    # Fires at 4.0 s; the cool time (7.0 s) starts then: next cast starts at 11.0 s, fires at 15.0 s.
-    assert events(series(hist, lambda st: st.hp[0]), 1000.0) == [40, 150]
+    # Fires at 4.0 s (tick 200); the cool time (7.0 s) starts then: the charge is back at the end
+    # of tick 550, the next cast starts in decision 111 and fires in tick 750. Each slash lands a
+    # tick after it is fired: decisions 41 and 151.
+    assert events(series(hist, lambda st: st.hp[0]), 1000.0) == [41, 151]
 
 
 def test_boss_tries_attack_1_then_attack_2():
@@ -136,8 +140,9 @@ def test_straight_missile_flies_along_facing_and_is_destroyed_by_walls():
     s = solo(p, (0.0, -4.0), headings=(0.0, 0.0, 0.0))  # faces +x; the boss is at +y
     _, hist = run(s, p, CAST, 14)
     live = [bool(h["state"].projectiles.live.any()) for h in hist]
-    # Spawned at x = 0 on decision 5, 1.5 per decision: x = 12.0 on decision 12, 13.5 > 12.25 on 13.
-    assert live == [False] * 4 + [True] * 8 + [False] * 2
+    # Fired at the end of decision 5 (tick 25) at x = 0; it first moves in decision 6, 1.5 per
+    # decision: x = 12.0 on decision 13, 13.5 > 12.25 on 14.
+    assert live == [False] * 4 + [True] * 9 + [False] * 1
     assert float(hist[-1]["state"].hp[BOSS]) == 1000.0
     # Facing the boss, the same missile hits it.
     s = solo(p, (0.0, -4.0))
@@ -182,13 +187,13 @@ def slash_params(hit_count=3):
 @pytest.mark.parametrize("offset, expected", [(0.5, [40.0, 40.0, 100.0]), (1.0, [40.0, 40.0, 40.0]),
                                               (0.0, [100.0, 100.0, 100.0])])
 def test_attack_2_area_is_centred_at_the_boss_target_midpoint(offset, expected):
-    # Target A at distance 4: midpoint (0, -2), reach 2.4 + hurtbox (> 2.5 for any hurtbox
-    # scale >= 0.2). B is 2.5 from the midpoint (hit); C is 2.6 from A but 4.6 from the midpoint.
+    # Target A at distance 4: midpoint (0, -2), reach 2.4 + 0.5. B is 2.5 from the midpoint (hit);
+    # C is 2.6 from A but 4.6 from the midpoint.
     # area_offset 1.0 centres it on A (all within 2.6); 0.0 on the boss (A, B, C >= 4 away).
     p = make(passive_boss=False, boss_overrides={"move_speed": 0.0, "skill1.range": 1.0, "skill2.cast_time": 0.1,
                                                  "skill2.area_offset": offset})
     s = scenario(p, players=((0.0, -4.0), (1.5, -4.0), (0.0, -6.6)), boss=(0.0, 0.0))
-    out, _ = run(s, p, acts(NOOP), 1)
+    out, _ = run(s, p, acts(NOOP), 2)  # fired in tick 5, lands in tick 6
     np.testing.assert_allclose(np.asarray(out.hp[:3]), expected)
 
 
@@ -205,7 +210,7 @@ def test_area_hits_at_most_hit_count_units_nearest_first(hit_count, expected):
     p = slash_params(hit_count)
     # Midpoint (0, -1.5): A 1.5 away, B and C 2.16 away (tie -> lower index first).
     s = scenario(p, players=((0.0, -3.0), (1.2, -3.3), (-1.2, -3.3)), boss=(0.0, 0.0))
-    out, _ = run(s, p, acts(NOOP), 1)
+    out, _ = run(s, p, acts(NOOP), 2)  # fired in tick 5, lands in tick 6
     np.testing.assert_allclose(np.asarray(out.hp[:3]), expected)
 
 
@@ -249,7 +254,7 @@ def test_reference_boss_dies_after_17_back_attacks():
     _, hist = run(s, p, CAST, 175)
     hp = series(hist, lambda st: st.hp[BOSS])
     drops = np.diff(np.concatenate([[1000.0], hp]))
-    assert set(drops[drops < 0].tolist()) == {-60.0}
-    assert (drops < 0).sum() == 17  # 16 x 60 = 960 < 1000 <= 17 x 60
+    # 16 x 60 = 960 < 1000 <= 17 x 60: the 17th hit takes the last 40 (HP floors at 0).
+    assert drops[drops < 0].tolist() == [-60.0] * 16 + [-40.0]
     assert int(hist[-1]["state"].back_attacks[0]) == 17
     assert int(hist[-1]["info"]["result"]) == 1

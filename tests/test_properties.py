@@ -56,6 +56,7 @@ def test_random_valid_content_stays_finite_and_consistent(c):
     f = jax.device_get(final)
     assert (np.abs(f.pos) <= 12.25 + 1e-4).all()
     assert (f.hp <= np.asarray(p.stats.max_hp) + 1e-3).all()
+    assert (f.hp >= 0).all()  # HP floors at 0 on death
     assert (f.mana <= np.asarray(p.stats.max_mana) + 1e-3).all()
     assert (f.charges >= 0).all() and (f.charges <= np.asarray(p.skills.charge)).all()
     assert (np.asarray(rewards) >= 0).all()

@@ -212,7 +212,8 @@ def controllability_figure(rows: list[dict]):
     return fig
 
 
-def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300) -> dict:
+def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300,
+           protocol: pm.Protocol | None = None) -> dict:
     """Write the tables, CSVs and figures of Benchmark 2 into ``run``.
 
     Args:
@@ -220,13 +221,14 @@ def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300
         gens: ``{method: generate output}`` (``target`` [n], ``skill`` [n, 4], ``win_rate`` [n], ...).
         seed: t-SNE / subsampling seed.
         tsne_per_target: at most this many skills per (method, target) in the t-SNE.
+        protocol: which episodes count and how groups are cut (``summarize``; default raidjax's).
 
     Returns:
         JSON-able ``mean_error``, ``pc1_sd``, ``yield``, ``edits`` and ``n_controllability`` per
         method, and ``seconds``.
     """
     t0 = time.perf_counter()
-    summ = summarize(gens)
+    summ = summarize(gens, protocol)
     crow, drow, yrow = controllability_rows(summ), diversity_rows(summ), yield_rows(gens)
     run.write_csv("controllability", crow)
     run.write_csv("diversity", drow)

@@ -1,17 +1,24 @@
 """Benchmark 1 of the RaidEnv paper (SPEC §11): playtesting agents, end to end.
 
-    python -m experiments.benchmark1 --scale {smoke,cpu,paper} --out DIR
+    python -m experiments.benchmark1 --scale {smoke,cpu,paper} --out DIR [--protocol {paper,raidjax}]
 
 Every MA-POCA run of the benchmark trains in **one** vmapped, jitted program: each run is a row
 with its own seed, content and set of skill ranges (``trainers.mapoca.range_table``), so the
 whole benchmark compiles once. The runs (``R`` = seeds, ``Q`` = population size):
 
 - ``table/r{5,9,13,17}`` x R: the win-rate table's MA-POCA, reference content at one range;
-- ``robust/MA-POCA{1..4}`` x R: ranges drawn per episode from {5}, {5,9}, {5,9,13}, {5,9,13,17};
+- ``robust/MA-POCA{1..4}`` x R: ranges drawn (see the protocols) from {5}, {5,9}, {5,9,13}, {5,9,13,17};
 - ``population/r{3,4,19,20}`` x Q: trained directly on each unseen test range.
 
-The robustness study trains and tests on the *test content* (the reference with cool time 1.0,
-SPEC §11) so that seen and unseen content differ only in the skill range [decide, docs/GAME.md].
+Protocols (``PROTOCOLS``; SPEC Revision 2 item 5):
+
+- ``paper`` (default), the reference configs: MA-POCA1..4 and the populations train on the
+  reference content (players' cool time 0.5: ``RL_GENERALIZATION/JSON/train/*.json``,
+  ``population/*.json``) and are tested on the test content (cool time 1.0:
+  ``test/skill_{easy,hard}.json``); an arena redraws its range every second episode
+  (``trainers.mapoca.next_ranges``, one draw per arena shared by its players).
+- ``raidjax``: train on the test content too (seen and unseen content differ only in the skill
+  range) and redraw the range at every episode.
 
 Stages (``experiments.runfolder``; rerunning the command resumes): ``train`` (orbax checkpoints
 every few chunks, progress lines with decisions/s and ETA), ``evaluate`` (every run's team and
@@ -42,7 +49,21 @@ TABLE_RANGES = (5.0, 9.0, 13.0, 17.0)
 ROBUST_SETS = {"MA-POCA1": (5.0,), "MA-POCA2": (5.0, 9.0), "MA-POCA3": (5.0, 9.0, 13.0),
                "MA-POCA4": (5.0, 9.0, 13.0, 17.0)}
 TEST_RANGES = (3.0, 4.0, 19.0, 20.0)
-TEST_COOL_TIME = 1.0
+TEST_COOL_TIME = 1.0  # test/skill_easy.json, skill_hard.json
+TRAIN_COOL_TIME = 0.5  # train/skill*_config.json, population/*.json (= the reference content)
+
+
+@dataclasses.dataclass(frozen=True)
+class Protocol:
+    """How the robustness runs train. ``train_content``: content kind of MA-POCA1..4 and the
+    populations (``"reference"``: cool time 0.5; ``"test"``: 1.0); ``redraw_every``: episodes of
+    an arena per range draw (``trainers.config.Config.redraw_every``)."""
+
+    train_content: str
+    redraw_every: int
+
+
+PROTOCOLS = {"paper": Protocol("reference", 2), "raidjax": Protocol("test", 1)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,7 +82,8 @@ class Scale:
 
 
 SCALES = {
-    # seconds: a tiny network and two updates; checks the plumbing, not the learning
+    # seconds: a tiny network and two updates; checks the plumbing, not the learning (the game
+    # keeps its defaults: the smoke scale is about wiring, its numbers mean nothing)
     "smoke": Scale("cpu", total_steps=256, seeds=1, population=1, games=8, heatmap_games=4,
                    heatmap_ranges=(5.0, 13.0), checkpoint_chunks=1,
                    trainer=(("n_arenas", 16), ("n_steps", 8), ("n_minibatches", 2), ("update_epochs", 1),
@@ -69,29 +91,43 @@ SCALES = {
     # under an hour on 2 CPU cores: the cpu preset, 2 seeds, populations of 2, 1.5 M decisions per run
     "cpu": Scale("cpu", total_steps=1_500_000, seeds=2, population=2, games=500, heatmap_games=500,
                  heatmap_ranges=(5.0, 9.0, 13.0, 17.0), checkpoint_chunks=5),
-    # the paper's budgets: 50 M agent steps (16.7 M decisions) per run, 5 seeds, populations of 5
-    "paper": Scale("paper", total_steps=16_700_000, seeds=5, population=5, games=500, heatmap_games=500,
+    # the paper's budgets: 50 M agent steps (the paper preset's 16.7 M decisions) per run, 5 seeds,
+    # populations of 5
+    "paper": Scale("paper", total_steps=PRESETS["paper"].total_steps, seeds=5, population=5, games=500,
+                   heatmap_games=500,
                    heatmap_ranges=(5.0, 9.0, 13.0, 17.0), checkpoint_chunks=5),
 }
 
 
-def config_of(scale: Scale) -> Config:
-    """The trainer ``Config`` of a scale."""
-    return PRESETS[scale.preset].replace(total_steps=scale.total_steps, eval_games=0, **dict(scale.trainer))
+def config_of(scale: Scale, protocol: str = "paper") -> Config:
+    """The trainer ``Config`` of a scale under a protocol (``PROTOCOLS`` key)."""
+    return PRESETS[scale.preset].replace(total_steps=scale.total_steps, eval_games=0,
+                                         redraw_every=PROTOCOLS[protocol].redraw_every, **dict(scale.trainer))
+
+
+def content_of(kind: str, skill_range: float = 5.0) -> raidjax.Params:
+    """``"reference"`` (players' cool time 0.5, the training content of the reference configs) or
+    ``"test"`` (cool time 1.0) content at the given range."""
+    cool = {"reference": TRAIN_COOL_TIME, "test": TEST_COOL_TIME}[kind]
+    return raidjax.with_player_skill(raidjax.make_params(skill_range=skill_range), cool_time=cool)
 
 
 def test_content(skill_range: float = 5.0) -> raidjax.Params:
-    """The robustness study's content: reference content, cool time 1.0, the given range."""
-    return raidjax.with_player_skill(raidjax.make_params(skill_range=skill_range), cool_time=TEST_COOL_TIME)
+    """The robustness study's test content: reference content, cool time 1.0, the given range."""
+    return content_of("test", skill_range)
 
 
-def runs_of(scale: Scale) -> list[dict]:
-    """Every training run: ``name``, ``group``, ``ranges``, ``content`` ("reference"/"test"), ``seed``."""
+def runs_of(scale: Scale, protocol: str = "paper") -> list[dict]:
+    """Every training run: ``name``, ``group``, ``ranges``, ``content`` (training content kind,
+    ``content_of``), ``seed``. The win-rate table trains and is tested on the reference content;
+    MA-POCA1..4 and the populations train on ``PROTOCOLS[protocol].train_content`` and are tested
+    on the test content."""
+    kind = PROTOCOLS[protocol].train_content
     runs = [dict(name=f"table/r{r:g}", group="table", ranges=(r,), content="reference", seed=s)
             for r in TABLE_RANGES for s in range(scale.seeds)]
-    runs += [dict(name=f"robust/{k}", group="robust", ranges=v, content="test", seed=s)
+    runs += [dict(name=f"robust/{k}", group="robust", ranges=v, content=kind, seed=s)
              for k, v in ROBUST_SETS.items() for s in range(scale.seeds)]
-    runs += [dict(name=f"population/r{r:g}", group="population", ranges=(r,), content="test", seed=s)
+    runs += [dict(name=f"population/r{r:g}", group="population", ranges=(r,), content=kind, seed=s)
              for r in TEST_RANGES for s in range(scale.population)]
     return runs
 
@@ -102,7 +138,7 @@ def _stack(trees):
 
 def _run_inputs(runs: list[dict], base_seed: int):
     keys = jnp.stack([jax.random.fold_in(jax.random.PRNGKey(base_seed), i) for i in range(len(runs))])
-    contents = _stack([raidjax.make_params() if r["content"] == "reference" else test_content() for r in runs])
+    contents = _stack([content_of(r["content"]) for r in runs])
     tables = jnp.stack([range_table(r["ranges"], size=RANGE_TABLE) for r in runs])  # one shape for all runs
     return keys, contents, tables
 
@@ -111,11 +147,12 @@ class Interrupted(Exception):
     """Training stopped early on purpose (``--max-chunks``); rerunning the command resumes."""
 
 
-def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chunks: int | None = None) -> dict:
+def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chunks: int | None = None,
+          protocol: str = "paper") -> dict:
     """Train every run together (resuming from the last checkpoint); returns timing figures.
 
     ``max_chunks`` stops after that many chunks of this invocation (simulates an interruption)."""
-    cfg = config_of(scale)
+    cfg = config_of(scale, protocol)
     trainer = make_trainer(cfg, redraw_ranges=True)
     inputs = _run_inputs(runs, base_seed)
     init = jax.jit(jax.vmap(trainer.init))
@@ -160,7 +197,7 @@ def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chu
 
 def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int):
     """``(actor module, actor weights with a leading run axis)`` from the last checkpoint."""
-    cfg = config_of(scale)
+    cfg = config_of(scale)  # the protocol changes no shape
     trainer = make_trainer(cfg, redraw_ranges=True)
     abstract = jax.eval_shape(jax.vmap(trainer.init), *_run_inputs(runs, base_seed))
     runner, _, _ = checkpoint.restore(rf.path("checkpoints", "mapoca"), abstract)
@@ -190,16 +227,23 @@ def per_team(key, actor, weights, contents, measure) -> jax.Array:
     return jax.jit(jax.vmap(one))(keys, weights, contents)
 
 
-def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> dict:
-    """Win rates of every cell; returns ``{"cells": [...]}`` (one dict per cell)."""
-    actor, weights = load_actors(rf, scale, runs, base_seed)
-    cells = []  # (run index or policy name, content kind, range, eval seed)
+def eval_cells(runs: list[dict]) -> list[tuple[int, str, float, int]]:
+    """The team cells ``(run index, content kind, range, seed)`` of the evaluation: a table run on
+    the reference content at its range, MA-POCA1..4 on the test content at every unseen range,
+    a population run on the test content at its range (whatever content they trained on)."""
+    cells = []
     for i, r in enumerate(runs):
         if r["group"] == "robust":
             cells += [(i, "test", t, r["seed"]) for t in TEST_RANGES]
         else:
-            cells.append((i, r["content"], r["ranges"][0], r["seed"]))
-    content_of = lambda kind, rng: (raidjax.make_params(skill_range=rng) if kind == "reference" else test_content(rng))
+            cells.append((i, "reference" if r["group"] == "table" else "test", r["ranges"][0], r["seed"]))
+    return cells
+
+
+def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> dict:
+    """Win rates of every cell; returns ``{"cells": [...]}`` (one dict per cell)."""
+    actor, weights = load_actors(rf, scale, runs, base_seed)
+    cells = eval_cells(runs)
     contents = _stack([content_of(k, rg) for _, k, rg, _ in cells])
     w = jax.tree.map(lambda x: x[jnp.asarray([c[0] for c in cells])], weights)
     t = time.perf_counter()
@@ -250,24 +294,27 @@ def main(argv=None) -> dict:
     ap.add_argument("--scale", choices=sorted(SCALES), default="smoke")
     ap.add_argument("--out", required=True, help="run folder (rerun the same command to resume)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--protocol", choices=sorted(PROTOCOLS), default="paper",
+                    help="paper: train MA-POCA1..4 and populations at cool time 0.5, range redrawn every second "
+                    "episode; raidjax: train at the test content (cool time 1.0), range redrawn every episode")
     ap.add_argument("--max-chunks", type=int, help="stop training after this many chunks (tests resuming)")
     args = ap.parse_args(argv)
     scale = SCALES[args.scale]
-    runs = runs_of(scale)
-    rf = RunFolder(args.out, {"benchmark": 1, "scale": args.scale, "seed": args.seed,
-                              "budgets": dataclasses.asdict(scale), "trainer": config_of(scale).to_dict(),
-                              "runs": runs})
+    runs = runs_of(scale, args.protocol)
+    rf = RunFolder(args.out, {"benchmark": 1, "scale": args.scale, "seed": args.seed, "protocol": args.protocol,
+                              "budgets": dataclasses.asdict(scale),
+                              "trainer": config_of(scale, args.protocol).to_dict(), "runs": runs})
     from experiments import b1_report
 
     try:
-        timing = rf.stage("train", lambda: train(rf, scale, runs, args.seed, args.max_chunks))
+        timing = rf.stage("train", lambda: train(rf, scale, runs, args.seed, args.max_chunks, args.protocol))
     except Interrupted as e:
         rf.log(str(e))
         return {"interrupted": True}
     ev = rf.stage("evaluate", lambda: evaluate(rf, scale, runs, args.seed))
     rf.stage("heatmaps", lambda: heatmaps(rf, scale, runs, args.seed))
     summary = rf.stage("report", lambda: b1_report.report(rf, ev["cells"], timing))
-    return rf.finish({"benchmark": 1, "scale": args.scale, **summary, "train": timing})
+    return rf.finish({"benchmark": 1, "scale": args.scale, "protocol": args.protocol, **summary, "train": timing})
 
 
 if __name__ == "__main__":

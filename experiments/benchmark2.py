@@ -1,7 +1,7 @@
 """Benchmark 2 of the RaidEnv paper (SPEC §10–§11): controllable skill generation, as one
 resumable command::
 
-    python -m experiments.benchmark2 --scale {smoke,cpu,paper} --out DIR [--seed N]
+    python -m experiments.benchmark2 --scale {smoke,cpu,paper} --out DIR [--seed N] [--protocol {paper,raidjax}]
 
 Stages (each a ``RunFolder.stage``; rerunning the same command resumes after the last finished
 one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
@@ -9,11 +9,15 @@ one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
 1. ``train``: PPO-PCGRL (``trainers.ppo_pcgrl``) in jitted chunks, orbax checkpoints in
    ``DIR/checkpoints/ppo``, per-update metrics in ``csv/ppo_train.csv``, progress in ``log.txt``.
 2. ``generate``: the trained PPO, PCG-HR and PCG-RD generators run ``episodes`` episodes per target
-   (0.1..0.7); each final skill is measured with ``eval_games`` (300) PT-HR games. The episodes
-   are generated in ``parts`` (each saved, so an interruption loses at most one part);
-   the result is ``generated.npz`` and ``csv/generated.csv``.
+   (0.1..0.7) under the protocol (``raidjax.pcg_metrics.PROTOCOLS``). ``paper`` (default): strict
+   40-decision episodes, every decision measured with ``eval_games`` (300) PT-HR games, greedy PPO,
+   each episode's last measured skill kept with that measurement. ``raidjax``: episodes end at the
+   band, ``gen_games`` per measurement, sampled PPO, the final skill re-measured with
+   ``eval_games`` games. The episodes are generated in ``parts`` (each saved, so an interruption
+   loses at most one part); the result is ``generated.npz`` and ``csv/generated.csv``.
 3. ``report``: controllability / diversity / yield tables beside the paper's numbers, the t-SNE
-   and controllability figures (``experiments.b2_report``).
+   and controllability figures (``experiments.b2_report``); under ``paper`` every (method,
+   target) group is cut to 300 (or the smallest group) before the metrics, with a fixed seed.
 
 Variants beyond the paper's protocol (each recorded in ``config.json``): ``--pool-repeats`` (the
 generation environment pools the games of an unchanged skill, for all three generators),
@@ -57,9 +61,10 @@ class Scale:
         chunk: PPO updates per jitted chunk (progress / checkpoint period).
         episodes: generation episodes per target and method (PPO: split evenly over seeds).
         parts: generation is done in this many saved parts (``episodes`` divisible by it).
-        gen_games: PT-HR games per generator measurement during generation.
-        eval_games: PT-HR games measuring each final skill (300 in the SPEC).
-        greedy: argmax PPO actions in generation (else sampled).
+        gen_games: PT-HR games per generator measurement (``raidjax`` protocol).
+        eval_games: PT-HR games behind each kept win rate (300 in the SPEC): every measurement
+            of the ``paper`` protocol, the re-measurement of the ``raidjax`` protocol.
+        decisions: overrides the ``paper`` protocol's 40 decisions per episode (``None``: 40).
         tsne_per_target: at most this many skills per (method, target) in the t-SNE figure.
         fast_compile: compile the PPO learner with XLA backend optimisation level 0 (compiles
             ~3x faster, runs slower: for the smoke test; generation keeps the defaults, where
@@ -74,7 +79,7 @@ class Scale:
     parts: int
     gen_games: int
     eval_games: int
-    greedy: bool = False
+    decisions: int | None = None
     tsne_per_target: int = 300
     fast_compile: bool = False
 
@@ -85,18 +90,21 @@ class Scale:
 
 
 SCALES = {
-    # Seconds: a tiny learner and a few games per measurement (used by the tests).
+    # Seconds: a tiny learner, a few games per measurement, 4-decision paper-protocol episodes (used
+    # by the tests; its numbers mean nothing).
     "smoke": Scale(preset="cpu", ppo=dict(n_envs=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2,
                                           hidden=(16, 16), n_games=8, max_edits=6),
-                   seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=16, fast_compile=True),
+                   seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=16, decisions=4,
+                   fast_compile=True),
     # ~20 min on 2 shared CPU cores: the cpu preset (one model for all targets, target observed; N = 50
     # games per training measurement, 20 480 steps as in docs/RESULTS.md), 12 episodes per target and
     # method with 100-game generator measurements and the SPEC's 300-game final measurement.
     "cpu": Scale(preset="cpu", ppo=dict(total_steps=20480), seeds=1, chunk=5, episodes=12, parts=6,
                  gen_games=100, eval_games=300),
     # The paper's budgets: one model per fixed (unobserved) target, 5 seeds, 20 000 steps, N = 100
-    # in training and 300 in evaluation, 1 000 skills per target and method (paper §5.3).
-    "paper": Scale(preset="paper", ppo={}, seeds=5, chunk=2, episodes=1000, parts=10, gen_games=300,
+    # in training and 300 in evaluation, 5 models x 1 000 skills per target (paper §5.3; PCG-HR and
+    # PCG-RD as many), cut to 300 per (method, target) by the paper protocol's metrics.
+    "paper": Scale(preset="paper", ppo={}, seeds=5, chunk=2, episodes=5000, parts=50, gen_games=300,
                    eval_games=300),
 }
 
@@ -111,6 +119,10 @@ def _parse(argv=None) -> argparse.Namespace:
     ap.add_argument("--scale", choices=sorted(SCALES), default="cpu")
     ap.add_argument("--out", required=True, help="run folder (rerun the same command to resume)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--protocol", choices=sorted(pm.PROTOCOLS), default="paper",
+                    help="paper: strict 40-decision episodes measured with eval_games games at every edit, greedy "
+                    "PPO, last measured skill, groups cut to 300; raidjax: early stop at the band, sampled PPO, "
+                    "final skill re-measured, unequal groups")
     ap.add_argument("--edit-cost", type=float, help="PPO learner penalty per tick moved (env reward units; "
                     "default: the scale's, 0 = the paper's reward)")
     ap.add_argument("--anchor-cost", type=float, help="PPO learner penalty per squared tick of displacement "
@@ -271,18 +283,33 @@ def generated_rows(gens: dict) -> list[dict]:
     return rows
 
 
-def stage_generate(run: RunFolder, scale: Scale, seed: int) -> dict:
-    """Generate with PPO (weights from the final checkpoint), PCG-HR and PCG-RD, in saved parts.
-    Returns ``episodes`` per method, ``parts`` and ``seconds``."""
+def protocol_of(scale: Scale, name: str) -> pm.Protocol:
+    """``pm.PROTOCOLS[name]`` with the scale's ``decisions`` override (paper protocol only)."""
+    pr = pm.PROTOCOLS[name]
+    if scale.decisions is not None and pr.decisions is not None:
+        pr = dataclasses.replace(pr, decisions=scale.decisions)
+    return pr
+
+
+def generation_args(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: int) -> types.SimpleNamespace:
+    """The ``ppo_pcgrl_cli.evaluate`` arguments of a protocol: per-edit games, greedy, strict
+    length, measured edits per episode (``pr.max_edits(max_edits)``), re-measurement games (0: none)."""
+    return types.SimpleNamespace(eval_gen_games=scale.gen_games if pr.remeasure else scale.eval_games,
+                                 greedy=pr.greedy, temperature=1.0, eval_episodes=episodes,
+                                 eval_games=scale.eval_games if pr.remeasure else 0, no_baselines=False,
+                                 strict_length=pr.strict_length, max_edits=pr.max_edits(max_edits))
+
+
+def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "paper") -> dict:
+    """Generate with PPO (weights from the final checkpoint), PCG-HR and PCG-RD, in saved parts,
+    under ``protocol`` (``pm.PROTOCOLS`` key). Returns ``episodes`` per method, ``parts`` and ``seconds``."""
     lr = _Learner(run, scale, seed)
     total = lr.config.n_updates
     if lr.mgr.latest_step() != total:
         raise RuntimeError(f"no final PPO checkpoint (update {total}) in {run.out / 'checkpoints' / 'ppo'}")
     params = lr.restore_params(total)
     per_part = scale.episodes // scale.parts
-    args = types.SimpleNamespace(eval_gen_games=scale.gen_games, greedy=scale.greedy, temperature=1.0,
-                                 eval_episodes=per_part,
-                                 eval_games=scale.eval_games, no_baselines=False)
+    args = generation_args(scale, protocol_of(scale, protocol), lr.config.max_edits, per_part)
     t0, done_here, parts = time.perf_counter(), 0, []
     for i in range(scale.parts):
         path = run.path("gen_parts", f"part_{i:03d}.npz")
@@ -321,14 +348,17 @@ def main(argv=None) -> dict:
     if scale.episodes % scale.parts or (scale.episodes // scale.parts) % scale.seeds:
         raise ValueError(f"episodes: {scale.episodes} per target must split evenly into {scale.parts} parts "
                          f"and, per part, over {scale.seeds} PPO seeds")
-    config = {"benchmark": 2, "scale": a.scale, "seed": a.seed, **dataclasses.asdict(scale),
+    pr = protocol_of(scale, a.protocol)
+    config = {"benchmark": 2, "scale": a.scale, "seed": a.seed, "protocol": dataclasses.asdict(pr),
+              **dataclasses.asdict(scale),
               "ppo_config": dataclasses.asdict(ppo_config(scale)), "targets": list(pm.TARGETS)}
     run = RunFolder(a.out, config)
     tr = run.stage("train", lambda: stage_train(run, scale, a.seed))
-    ge = run.stage("generate", lambda: stage_generate(run, scale, a.seed))
+    ge = run.stage("generate", lambda: stage_generate(run, scale, a.seed, a.protocol))
     rep = run.stage("report", lambda: b2_report.report(run, load_generated(run.out / "generated.npz"),
-                                                          seed=a.seed, tsne_per_target=scale.tsne_per_target))
-    summary = {"benchmark": 2, "scale": a.scale, "seed": a.seed,
+                                                          seed=a.seed, tsne_per_target=scale.tsne_per_target,
+                                                          protocol=pr))
+    summary = {"benchmark": 2, "scale": a.scale, "seed": a.seed, "protocol": a.protocol,
                **{k: rep.get(k) for k in ("mean_error", "pc1_sd", "pc1_own_sd", "yield", "edits", "n_controllability")},
                "paper": b2_report.paper_summary(),
                "train_steps": tr["steps"], "train_groups": tr["groups"], "episodes": ge["episodes"],

@@ -3,12 +3,16 @@ plus the playtest-noise measurement.
 
 ``generate`` runs any generator policy ``policy(policy_params, key, obs, state, params) ->
 int32[4]`` (``raidjax.pcg.random_policy``, ``heuristic_policy`` or a trained PPO policy) for E
-episodes per target, all episodes in parallel, and measures each final skill with 300 games.
-The metric functions are plain numpy on the returned arrays.
+episodes per target, all episodes in parallel, and keeps each episode's last skill: either with
+the generator's own last measurement (``eval_games=0``, the paper's protocol) or re-measured
+with ``eval_games`` games (raidjax's protocol). The metric functions are plain numpy on the
+returned arrays; ``group_size`` cuts every (method, target) group to one size before a metric
+(``equal_groups``), as the reference notebook's ``groupby(...).sample(n=300, random_state=1)``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from functools import partial
 
 import jax
@@ -18,6 +22,56 @@ import numpy as np
 from raidjax import pcg
 
 TARGETS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
+
+
+@dataclasses.dataclass(frozen=True)
+class Protocol:
+    """How Benchmark 2 generates, keeps and compares skills (SPEC Revision 2 item 5).
+
+    Attributes:
+        name: ``PROTOCOLS`` key.
+        strict_length: generation episodes never end early at the band (``PCGParams.strict_length``).
+        decisions: generation episode length in the reference's decisions (``PCGAgent`` MaxStep
+            40); every decision measures the current skill, then edits it, so an episode is the
+            start measurement plus ``decisions - 1`` measured edits, and the last edit is never
+            measured (not played here). ``None``: the PPO config's ``max_edits`` measured edits.
+        greedy: PPO generates with the argmax of each branch (else samples).
+        remeasure: the kept skill is re-measured with ``eval_games`` games (else the generator's
+            own last measurement, with ``eval_games`` games per edit, is the result).
+        min_edits: controllability keeps episodes with at least this many measured edits (the
+            notebook's ``StepCount >= 2`` = one measured edit; raidjax: 2).
+        diversity_min_edits: the same filter for diversity (raidjax: none).
+        group_size: cut every (method, target) group to this size before the metrics
+            (``equal_groups``; ``None``: unequal groups).
+        seed: the cut's seed.
+    """
+
+    name: str
+    strict_length: bool
+    decisions: int | None
+    greedy: bool
+    remeasure: bool
+    min_edits: int
+    diversity_min_edits: int
+    group_size: int | None
+    seed: int = 1
+
+    def max_edits(self, config_max_edits: int) -> int:
+        """Measured edits per generation episode (``config_max_edits`` when ``decisions`` is None)."""
+        return config_max_edits if self.decisions is None else self.decisions - 1
+
+
+PROTOCOLS = {
+    # The reference (PCG/SkillSampling configs, SkillParameterVisualization3.ipynb): strict 40-decision
+    # episodes measured with 300 games at every decision, greedy PPO, last measured skill of episodes
+    # with StepCount >= 2, 300 per (method, target) before scaling and PCA.
+    "paper": Protocol("paper", strict_length=True, decisions=40, greedy=True, remeasure=False, min_edits=1,
+                      diversity_min_edits=1, group_size=300),
+    # raidjax's earlier protocol: early stop at the band, sampled PPO, a fresh 300-game
+    # re-measurement of the final skill, episodes with >= 2 measured edits, unequal groups.
+    "raidjax": Protocol("raidjax", strict_length=False, decisions=None, greedy=False, remeasure=True, min_edits=2,
+                        diversity_min_edits=0, group_size=None),
+}
 
 
 @partial(jax.jit, static_argnames=("policy", "episodes", "eval_games"))
@@ -41,7 +95,10 @@ def _generate(key, policy, policy_params, params: pcg.PCGParams, targets, episod
         return (i < params.max_edits) & ~jnp.all(state.done)
 
     _, _, state = jax.lax.while_loop(cond, body, (jnp.int32(0), obs, state))
-    final = jax.vmap(lambda k, s: pcg.measure(k, params, s, eval_games))(jax.random.split(k_eval, n), state.skill)
+    if eval_games:
+        final = jax.vmap(lambda k, s: pcg.measure(k, params, s, eval_games))(jax.random.split(k_eval, n), state.skill)
+    else:  # the generator's own last measurement is the result (no re-measurement)
+        final = state.win_rate
     return {"target": t, "skill": state.skill, "win_rate": final, "gen_win_rate": state.win_rate,
             "edits": state.edits, "reached": state.reached, "start": state.start, "preferences": state.preferences,
             "goal": state.goal}
@@ -58,11 +115,12 @@ def generate(key: jax.Array, policy, params: pcg.PCGParams, *, policy_params=Non
         policy_params: pytree passed to ``policy`` (network weights; ``None`` for baselines).
         targets: target win rates (T of them).
         episodes: E, episodes per target.
-        eval_games: games measuring each final skill (300).
+        eval_games: games re-measuring each final skill (300); 0 keeps the generator's own last
+            measurement (``params.n_games`` games), so ``win_rate == gen_win_rate``.
 
     Returns:
-        numpy dict over ``n = T * E`` episodes: ``target`` [n], ``skill`` [n, 4], ``win_rate`` [n]
-        (``eval_games``-game win rate of the final skill), ``gen_win_rate`` [n] (the generator's
+        numpy dict over ``n = T * E`` episodes: ``target`` [n], ``skill`` [n, 4] (the last measured
+        skill), ``win_rate`` [n] (its result, see ``eval_games``), ``gen_win_rate`` [n] (the generator's
         last measurement), ``edits`` [n], ``reached`` [n] (the band was reached), ``start`` [n, 4]
         (the episode's random start skill), ``preferences`` [n, 4] (its edit preferences; ones
         unless ``params.edit_preferences``) and ``goal`` [n, 4] (its style goal; the start unless
@@ -72,18 +130,48 @@ def generate(key: jax.Array, policy, params: pcg.PCGParams, *, policy_params=Non
     return {k: np.asarray(v) for k, v in jax.device_get(out).items()}
 
 
-def controllability(gen: dict, min_edits: int = 2) -> dict:
+def equal_groups(groups: np.ndarray, size: int, seed: int = 1, min_size: int = 1) -> np.ndarray:
+    """Indices of an equal-size sample of every group (without replacement, fixed seed).
+
+    Groups with fewer than ``min_size`` members are left out; every other group is cut to
+    ``m = min(size, smallest such group)`` members (the reference notebook samples exactly 300
+    per (method, target); smaller runs take what the smallest group has).
+
+    Args:
+        groups: ``[n]`` hashable labels.
+        size: the cap on members per group.
+        seed: ``numpy.random.default_rng`` seed (groups are drawn in sorted label order).
+        min_size: smallest group kept.
+
+    Returns:
+        ``int[k * m]`` sorted indices into ``groups`` (k groups kept).
+    """
+    groups = np.asarray(groups)
+    labels, counts = np.unique(groups, return_counts=True)
+    kept = labels[counts >= min_size]
+    if kept.size == 0:
+        return np.zeros(0, int)
+    m = int(min(size, counts[counts >= min_size].min()))
+    rng = np.random.default_rng(seed)
+    return np.sort(np.concatenate([rng.choice(np.flatnonzero(groups == g), m, replace=False) for g in kept]))
+
+
+def controllability(gen: dict, min_edits: int = 2, group_size: int | None = None, seed: int = 1) -> dict:
     """Controllability (SPEC §11) over episodes with at least ``min_edits`` edits.
 
     Args:
         gen: ``generate`` output (``target``, ``win_rate``, ``edits`` [n]).
         min_edits: episodes with fewer edits are left out (the paper's ">= 2 edits").
+        group_size: cut every target's kept episodes to one size (``equal_groups``; ``None``: all).
+        seed: the cut's seed.
 
     Returns:
         ``{"per_target": {t: {"n", "wc_mean", "wc_sd", "err_mean", "err_sd"}}, "n", "wc_mean",
         "err_mean", "err_sd", "mean_of_target_means"}`` (floats; SD with ddof 0).
     """
-    keep = np.asarray(gen["edits"]) >= min_edits
+    keep = np.flatnonzero(np.asarray(gen["edits"]) >= min_edits)
+    if group_size is not None:
+        keep = keep[equal_groups(np.round(np.asarray(gen["target"])[keep], 6), group_size, seed)]
     t, w = np.asarray(gen["target"])[keep], np.asarray(gen["win_rate"])[keep]
     err = np.abs(t - w)
     per = {}
@@ -91,7 +179,7 @@ def controllability(gen: dict, min_edits: int = 2) -> dict:
         m = np.isclose(t, tv)
         per[float(tv)] = {"n": int(m.sum()), "wc_mean": float(w[m].mean()), "wc_sd": float(w[m].std()),
                           "err_mean": float(err[m].mean()), "err_sd": float(err[m].std())}
-    return {"per_target": per, "n": int(keep.sum()), "wc_mean": float(w.mean()) if w.size else float("nan"),
+    return {"per_target": per, "n": int(keep.size), "wc_mean": float(w.mean()) if w.size else float("nan"),
             "err_mean": float(err.mean()) if err.size else float("nan"),
             "err_sd": float(err.std()) if err.size else float("nan"),
             "mean_of_target_means": float(np.mean([p["err_mean"] for p in per.values()])) if per else float("nan")}
@@ -104,15 +192,20 @@ def first_pc(x: np.ndarray) -> np.ndarray:
     return vt[0]
 
 
-def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, threshold: float = 0.1) -> dict:
-    """Diversity (SPEC §11): keep skills with error < ``threshold``, min-max normalise the 4 parameters
-    over the pooled kept set, fit PCA on it, then per group the SD of each parameter and of PC1.
+def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, threshold: float = 0.1,
+              group_size: int | None = None, seed: int = 1) -> dict:
+    """Diversity (SPEC §11): keep skills with error < ``threshold``, optionally cut every group to
+    one size, min-max normalise the 4 parameters over the pooled (cut) set, fit PCA on it, then
+    per group the SD of each parameter and of PC1.
 
     Args:
         skills: ``[n, 4]`` generated skills (any groups pooled, e.g. all methods and targets).
         errors: ``[n]`` ``|W_t - W_c|``.
         groups: ``[n]`` hashable labels, e.g. ``"PPO|0.3"``.
         threshold: error cut-off.
+        group_size: cut the kept skills of every group with >= 2 of them to one size before the
+            scaling and PCA (``equal_groups``; the reference notebook: 300); ``None``: all kept.
+        seed: the cut's seed.
 
     Returns:
         ``{group: {"n", "param_sd": [4], "pc1_sd", "pc1_own_sd"}}`` (SD ddof 0; NaN for groups with
@@ -121,7 +214,9 @@ def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, thresh
         beside ``pc1_sd`` as a check that a lead does not come from the choice of axis.
     """
     skills, errors, groups = np.asarray(skills, float), np.asarray(errors), np.asarray(groups)
-    keep = errors < threshold
+    keep = np.flatnonzero(errors < threshold)
+    if group_size is not None:
+        keep = keep[equal_groups(groups[keep], group_size, seed, min_size=2)]
     x = skills[keep]
     out = {}
     if x.shape[0] == 0:

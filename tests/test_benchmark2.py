@@ -26,6 +26,7 @@ def test_paper_scale_is_wired_to_the_paper_budgets():
     cfg = b2.ppo_config(s)
     assert (cfg.total_steps, cfg.n_games, cfg.observe_target, s.seeds, s.eval_games, s.gen_games) == (
         20_000, 100, False, 5, 300, 300)
+    assert s.episodes == 5 * 1000 and s.decisions is None  # 5 models x 1000 skills per target, 40 decisions
     assert b2.SCALES["cpu"].eval_games == 300
     for sc in b2.SCALES.values():  # episodes split evenly into parts and over the PPO seeds
         assert sc.episodes % sc.parts == 0 and (sc.episodes // sc.parts) % sc.seeds == 0
@@ -66,10 +67,20 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
         assert g["skill"].shape == (E * len(pm.TARGETS), 4)
     assert len(_csv(out / "csv" / "generated.csv")) == E * len(pm.TARGETS) * len(b2.METHODS)
 
-    # Controllability CSV == pcg_metrics.controllability recomputed from generated.npz.
+    # The paper protocol (default): strict 4-decision smoke episodes (3 measured edits), the kept win
+    # rate is the generator's own 16-game measurement.
+    pr = b2.protocol_of(b2.SCALES["smoke"], "paper")
+    assert saved["protocol"] == "paper"
+    for g in gens.values():
+        assert (g["edits"] == 3).all()
+        np.testing.assert_array_equal(g["win_rate"], g["gen_win_rate"])
+        assert np.allclose(g["win_rate"] * 16, np.round(g["win_rate"] * 16))
+
+    # Controllability CSV == pcg_metrics.controllability recomputed from generated.npz, every
+    # (method, target) group cut to the smallest group's size (here: E).
     rows = _csv(out / "csv" / "controllability.csv")
     for m, g in gens.items():
-        c = pm.controllability(g)
+        c = pm.controllability(g, pr.min_edits, E, pr.seed)
         mine = {r["target"]: r for r in rows if r["method"] == m}
         assert float(mine["mean"]["err_mean"]) == pytest.approx(c["err_mean"], abs=1e-9)
         assert int(mine["mean"]["n"]) == c["n"]

@@ -204,7 +204,7 @@ def test_clipped_update_keeps_ratio_in_bounds(obs3, critic):
 def test_config_presets_and_json(tmp_path):
     paper = PRESETS["paper"]
     assert (paper.hidden, paper.layers, paper.lr, paper.ent_coef, paper.clip_eps, paper.lam, paper.update_epochs,
-            paper.gamma, paper.decisions_per_update) == (256, 2, 3e-4, 0.01, 0.2, 0.95, 3, 0.99, 8192)
+            paper.gamma, paper.decisions_per_update) == (256, 2, 3e-4, 0.01, 0.2, 0.95, 3, 0.99, 11 * 256)
     f = tmp_path / "c.json"
     f.write_text(json.dumps({"hidden": 24, "skill_ranges": [5, 9]}))
     cfg = load_config("cpu", f, total_steps=123)
@@ -236,6 +236,8 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path):
     assert m1["loss"].shape == (2,) and int(straight.update[0]) == cfg.num_updates
     assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves((m1, m_straight, straight.params)))
     assert set(np.unique(np.asarray(straight.ranges))) <= {9.0, 13.0}
+    # every finished episode is counted in its arena (the range redraw cadence, next_ranges)
+    assert np.array_equal(np.asarray(straight.episode.sum(1)), np.asarray(m1["episodes"] + m_straight["episodes"]))
     assert not np.array_equal(np.asarray(straight.params["actor"]["params"]["pi"]["kernel"]),
                               np.asarray(r0.params["actor"]["params"]["pi"]["kernel"]))
     ckpt = tmp_path / "checkpoints"

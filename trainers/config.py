@@ -1,7 +1,8 @@
 """Configuration of the MA-POCA trainer: one frozen dataclass, named presets, JSON round-trip.
 
 Units: ``n_arenas x n_steps`` environment *decisions* (every player acts once) per update;
-each decision holds up to ``P = 3`` agent experiences.
+each decision holds up to ``P = 3`` agent experiences. ML-Agents counts its buffer, batch and
+``max_steps`` in agent experiences; ``from_agent_steps`` converts them (the ``paper`` preset).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ class Config:
         n_minibatches: minibatches per epoch (minibatch = n_arenas * n_steps / n_minibatches decisions).
         update_epochs: passes over each rollout.
         lr, anneal_lr: Adam learning rate; linear decay to 0 over the run if ``anneal_lr``.
+        adam_eps: Adam's epsilon (torch's default 1e-8 in ML-Agents; 1e-5 the PureJaxRL habit).
         max_grad_norm: global gradient-norm clip (0 disables).
         gamma, lam: discount and λ of the λ-returns.
         clip_eps: PPO ratio clip ε, also the value/baseline clip.
@@ -28,7 +30,11 @@ class Config:
         hidden, layers, heads: network width, MLP depth, attention heads (actor and critic).
         proj_attention: the actor attends over projectiles as entities (else they join its
             self features; cheaper on CPU).
-        skill_ranges: skill-slot-1 range of every player, drawn per episode from this set.
+        skill_ranges: skill-slot-1 range of every player, drawn from this set (one draw per arena,
+            shared by its players).
+        redraw_every: an arena draws a new range at its start and then after every
+            ``redraw_every``-th episode (2 = the reference, ``MMORPGEnvController.ResetScene``:
+            episodes 1-2, 3-4, ... share a range; 1 = every episode).
         total_steps: environment decisions per seed.
         updates_per_chunk: updates per jitted chunk (one log row / progress line per chunk).
         checkpoint_every: checkpoint every this many updates (rounded up to whole chunks).
@@ -42,6 +48,7 @@ class Config:
     update_epochs: int = 3
     lr: float = 3e-4
     anneal_lr: bool = True
+    adam_eps: float = 1e-5
     max_grad_norm: float = 0.5
     gamma: float = 0.99
     lam: float = 0.95
@@ -53,6 +60,7 @@ class Config:
     heads: int = 4
     proj_attention: bool = True
     skill_ranges: tuple[float, ...] = (13.0,)
+    redraw_every: int = 2
     total_steps: int = 1_000_000
     updates_per_chunk: int = 10
     checkpoint_every: int = 50
@@ -97,12 +105,40 @@ class Config:
         return cls().replace(**d)
 
 
+def from_agent_steps(buffer: int, batch: int, horizon: int, players: int = 3) -> tuple[int, int]:
+    """``(n_arenas, n_minibatches)`` of an update holding ML-Agents' buffer, counted in decisions.
+
+    ML-Agents updates once its buffer holds *more than* ``buffer`` agent experiences
+    (``poca/trainer.py``: ``num_experiences > buffer_size``), filled with trajectories of
+    ``horizon`` steps per agent, and takes ``len // batch`` minibatches of ``batch`` agent
+    experiences per epoch. With every player alive a decision is ``players`` experiences, so
+    ``n_arenas = buffer // (horizon * players) + 1`` arenas of ``horizon`` decisions are the
+    first whole number of trajectories past ``buffer`` (8192, 256, 256, 3: 11 arenas = 8448
+    experiences = 33 trajectories), and ``n_minibatches`` is the divisor of the update's
+    decisions nearest to ``8448 // 256 = 33`` (ties: the smaller; 32 minibatches of 88 decisions,
+    264 experiences, where ML-Agents takes 33 of 256).
+    """
+    n_arenas = buffer // (horizon * players) + 1
+    decisions = n_arenas * horizon
+    want = decisions * players // batch
+    divisors = [d for d in range(1, decisions + 1) if decisions % d == 0]
+    return n_arenas, min(divisors, key=lambda d: (abs(d - want), d))
+
+
+PAPER_AGENT_STEPS = 50_000_000  # max_steps of configuration_range5.yaml, in agent steps
+_PAPER_ARENAS, _PAPER_MINIBATCHES = from_agent_steps(buffer=8192, batch=256, horizon=256)
+
 PRESETS: dict[str, Config] = {
-    # SPEC §12 reference hyper-parameters: buffer 8192 and batch 256 (taken as decisions,
-    # each up to 3 agent experiences), horizon 256, 3 epochs, 2 x 256 hidden, lr 3e-4 (linear
-    # decay, as ML-Agents' default schedule), beta 0.01, epsilon 0.2, lambda 0.95, gamma 0.99.
-    "paper": Config(n_arenas=32, n_steps=256, n_minibatches=32, update_epochs=3, lr=3e-4, hidden=256,
-                    layers=2, heads=4, ent_coef=0.01, lam=0.95, gamma=0.99, clip_eps=0.2),
+    # The reference trainer (Experiment/MA/RL_HEURISTIC/configs/configuration_range5.yaml, ML-Agents
+    # 0.28 POCA), field by field: buffer 8192 and batch 256 agent experiences (from_agent_steps:
+    # 11 arenas x 256 decisions, 32 minibatches), time_horizon 256, 3 epochs, 2 x 256 hidden, 4
+    # heads, lr 3e-4 and beta 0.01 constant (the yaml sets every schedule to constant), epsilon
+    # 0.2, lambda 0.95, gamma 0.99, torch Adam (eps 1e-8), no gradient clipping, max_steps 5e7
+    # agent steps = 5e7 / 3 decisions with all players alive. Differences left: docs/GAME.md.
+    "paper": Config(n_arenas=_PAPER_ARENAS, n_steps=256, n_minibatches=_PAPER_MINIBATCHES, update_epochs=3,
+                    lr=3e-4, anneal_lr=False, adam_eps=1e-8, max_grad_norm=0.0, hidden=256, layers=2, heads=4,
+                    ent_coef=0.01, anneal_ent=False, lam=0.95, gamma=0.99, clip_eps=0.2,
+                    total_steps=-(-PAPER_AGENT_STEPS // 3), redraw_every=2),
     # Small and wide: 256 arenas amortise the per-step cost on a 2-core CPU; a 2 x 32 network
     # with teammate-only attention (projectiles join the self features), 2 epochs of 8
     # minibatches of 1024 decisions, lr 1e-3 (see docs/RESULTS.md).

@@ -52,8 +52,9 @@ class Runner:
     env_state: State  # [N]
     obs: Observation  # [N, P, ...]
     content: Params  # the run's base content (unbatched); each episode sets its skill range
-    range_set: jax.Array  # float32[RANGE_TABLE] skill ranges drawn per episode (see range_table)
+    range_set: jax.Array  # float32[RANGE_TABLE] skill ranges drawn from (see range_table)
     ranges: jax.Array  # float32[N] skill range of each arena's current episode
+    episode: jax.Array  # int32[N] episodes each arena has finished (the range redraw cadence)
     ep_return: jax.Array  # float32[N] team return of the running episodes
     ep_length: jax.Array  # int32[N]
     key: jax.Array  # uint32[2] raw PRNG key
@@ -235,16 +236,38 @@ def range_table(ranges, size: int | None = None) -> jax.Array:
     return jnp.asarray(ranges * (size // len(ranges)), jnp.float32)
 
 
+def next_ranges(key: jax.Array, ranges: jax.Array, episode: jax.Array, done: jax.Array, range_set: jax.Array,
+                every: int) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """The reference's per-arena range redraw (``MMORPGEnvController.ResetScene``:
+    ``if (n_episode++ % 2 == 0) RequestMAConfig``), for ``every = 2``.
+
+    An arena that ends an episode counts it; when its count of finished episodes is a multiple of
+    ``every`` it draws a new range from ``range_set`` (one draw per arena, shared by its players).
+    The start of the run is a draw (``init``), so an arena's episodes 1..every share a range.
+
+    Args:
+        key: PRNG key; ranges: ``float32[N]``; episode: ``int32[N]`` finished episodes before this
+        step; done: ``bool[N]`` an episode ended this step; range_set: ``float32[K]``; every: static.
+
+    Returns:
+        ``(ranges float32[N], episode int32[N], redrawn bool[N])``.
+    """
+    episode = episode + done.astype(jnp.int32)
+    redrawn = done & (episode % every == 0)
+    fresh = jax.random.choice(key, range_set, ranges.shape)
+    return jnp.where(redrawn, fresh, ranges), episode, redrawn
+
+
 def make_trainer(config: Config, base_params: Params | None = None, redraw_ranges: bool | None = None) -> Trainer:
     """Build the pure training functions for ``config``.
 
     Args:
         config: hyper-parameters.
         base_params: default content of ``init`` (default: the reference content).
-        redraw_ranges: draw a new skill range at every episode start (static; default: when
-            ``config.skill_ranges`` has several values). ``init(key, content, range_set)`` may
-            give each vmapped run its own content and range set; set this ``True`` when any
-            run's set has several values.
+        redraw_ranges: draw new skill ranges (every ``config.redraw_every`` episodes of an
+            arena, ``next_ranges``; static; default: when ``config.skill_ranges`` has several
+            values). ``init(key, content, range_set)`` may give each vmapped run its own content
+            and range set; set this ``True`` when any run's set has several values.
     """
     cfg = config
     base = raidjax.make_params(skill_range=cfg.skill_ranges[0]) if base_params is None else base_params
@@ -253,12 +276,14 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention)
     critic = Critic(cfg.hidden, cfg.layers, cfg.heads)
     n, t_len = cfg.n_arenas, cfg.n_steps
+    if cfg.redraw_every < 1:
+        raise ValueError(f"redraw_every: value {cfg.redraw_every} must be >= 1 (episodes per range draw)")
     if (n * t_len) % cfg.n_minibatches:
         raise ValueError(f"n_minibatches: {cfg.n_minibatches} does not divide {n * t_len} decisions per update")
     grad_steps = cfg.num_updates * cfg.update_epochs * cfg.n_minibatches
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
     clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
-    tx = optax.chain(*clip, optax.adam(lr, eps=1e-5))
+    tx = optax.chain(*clip, optax.adam(lr, eps=cfg.adam_eps))
     env_params_of = jax.vmap(lambda content, r: with_player_skill(content, range=r), in_axes=(None, 0))
     step_all = jax.vmap(raidjax.step_autoreset)
 
@@ -274,8 +299,9 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         params = {"actor": actor.init(k_a, obs0),
                   "critic": critic.init(k_c, obs0, jnp.zeros(obs0.alive.shape, jnp.int32))}
         zf = jnp.zeros(n, jnp.float32)
-        return Runner(params, tx.init(params), state, obs, content, range_set, ranges, zf,
-                      jnp.zeros(n, jnp.int32), k_run, jnp.int32(0))
+        zi = jnp.zeros(n, jnp.int32)
+        return Runner(params, tx.init(params), state, obs, content, range_set, ranges, zi, zf, zi, k_run,
+                      jnp.int32(0))
 
     def rollout_step(runner: Runner, _):
         key, k_act, k_env, k_rng = jax.random.split(runner.key, 4)
@@ -285,11 +311,13 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         nxt, state, _, done, info = step_all(jax.random.split(k_env, n), runner.env_state, action,
                                              env_params_of(runner.content, runner.ranges))
         next_value = critic.apply(p["critic"], info["final_observation"], method=Critic.value)
-        ranges = runner.ranges
-        if multi_range:  # new episodes draw a new range; re-observe them under it
-            ranges = jnp.where(done, jax.random.choice(k_rng, runner.range_set, (n,)), ranges)
+        ranges, episode, redrawn = next_ranges(k_rng, runner.ranges, runner.episode, done, runner.range_set,
+                                               cfg.redraw_every)
+        if multi_range:  # arenas that drew a new range re-observe their new episode under it
             fresh = jax.vmap(raidjax.observe)(state, env_params_of(runner.content, ranges))
-            nxt = jax.tree.map(lambda a, b: jnp.where(done.reshape((n,) + (1,) * (a.ndim - 1)), a, b), fresh, nxt)
+            nxt = jax.tree.map(lambda a, b: jnp.where(redrawn.reshape((n,) + (1,) * (a.ndim - 1)), a, b), fresh, nxt)
+        else:
+            ranges = runner.ranges
         reward = team_reward(info, done)
         ep_ret, ep_len = runner.ep_return + reward, runner.ep_length + 1
         won = done & (info["result"] == WIN)
@@ -297,7 +325,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
               "draws": jnp.sum(done & info["truncated"]), "length_sum": jnp.sum(ep_len * done)}
         tr = Transition(obs, action, logp, obs.alive, value, baseline, next_value, reward, done,
                         info["terminated"])
-        runner = runner.replace(env_state=state, obs=nxt, ranges=ranges, key=key,
+        runner = runner.replace(env_state=state, obs=nxt, ranges=ranges, episode=episode, key=key,
                                 ep_return=jnp.where(done, 0.0, ep_ret), ep_length=jnp.where(done, 0, ep_len))
         return runner, (tr, ep)
 

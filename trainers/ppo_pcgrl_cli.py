@@ -149,10 +149,14 @@ def evaluate(key, config, runner_params, labels, args) -> dict:
         labels: ``_groups``' labels ``[(target or None, seed)] * G``.
         args: namespace with ``eval_gen_games``, ``greedy``, ``temperature`` (PPO's sampling
             temperature), ``eval_episodes`` (per target and method; PPO's are split over the
-            seeds), ``eval_games`` and ``no_baselines``.
+            seeds), ``eval_games`` (0: keep the generator's own last measurement), ``no_baselines``
+            and optionally ``strict_length`` and ``max_edits`` (default: the training env's).
 
     Returns a dict of per-method ``generate`` outputs (numpy arrays pooled over groups)."""
     p = env_params(config).replace(n_games=args.eval_gen_games)  # the training env; targets come from generate
+    strict, max_edits = getattr(args, "strict_length", None), getattr(args, "max_edits", None)
+    p = p.replace(strict_length=p.strict_length if strict is None else strict,
+                  max_edits=p.max_edits if max_edits is None else max_edits)
     policy = method_policy(tuple(config.hidden), args.greedy, args.temperature, config.one_lever)
     n_seeds = max(s for _, s in labels) + 1
     eps = max(1, args.eval_episodes // n_seeds)
@@ -172,17 +176,26 @@ def evaluate(key, config, runner_params, labels, args) -> dict:
     return gens
 
 
-def summarize(gens: dict) -> dict:
-    """Controllability, yield and diversity (pooled normalisation/PCA over all methods) per method."""
+def summarize(gens: dict, protocol: pm.Protocol | None = None) -> dict:
+    """Controllability, yield and diversity (pooled normalisation/PCA over all methods) per method,
+    episodes kept and groups cut as ``protocol`` says (default ``pm.PROTOCOLS["raidjax"]``)."""
+    pr = pm.PROTOCOLS["raidjax"] if protocol is None else protocol
     skills, errs, groups = [], [], []
     for name, g in gens.items():
-        skills.append(g["skill"])
-        errs.append(np.abs(g["target"] - g["win_rate"]))
-        groups += [f"{name}|{t:.1f}" for t in g["target"]]
-    div = pm.diversity(np.concatenate(skills), np.concatenate(errs), np.asarray(groups))
+        k = np.asarray(g["edits"]) >= pr.diversity_min_edits
+        skills.append(g["skill"][k])
+        errs.append(np.abs(g["target"] - g["win_rate"])[k])
+        groups += [f"{name}|{t:.1f}" for t in g["target"][k]]
+    div = pm.diversity(np.concatenate(skills), np.concatenate(errs), np.asarray(groups), group_size=pr.group_size,
+                       seed=pr.seed)
+    size = pr.group_size
+    if size is not None:  # one size for every (method, target) group: the smallest, at most group_size
+        counts = [np.unique(np.round(g["target"][np.asarray(g["edits"]) >= pr.min_edits], 6), return_counts=True)[1]
+                  for g in gens.values()]
+        size = int(min([size] + [c.min() for c in counts if c.size]))
     out = {}
     for name, g in gens.items():
-        c = pm.controllability(g)
+        c = pm.controllability(g, pr.min_edits, size, pr.seed)
         d = [v for k, v in div.items() if k.startswith(name + "|") and np.isfinite(v["pc1_sd"])]
         out[name] = {"controllability": c, **pm.yield_stats(g),
                      "pc1_sd_mean": float(np.mean([v["pc1_sd"] for v in d])) if d else float("nan"),

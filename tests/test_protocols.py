@@ -1,0 +1,219 @@
+"""The paper's protocols (SPEC Revision 2 items 5 and 6) on small hand-made cases: the MA-POCA
+``paper`` preset, the range redraw cadence, Benchmark 1's training/test content, and Benchmark 2's
+generation (strict, greedy, last measured skill) and equal-size groups. Expected values are
+derived by hand in the comments."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import raidjax
+from experiments import benchmark1 as b1
+from experiments import benchmark2 as b2
+from raidjax import pcg
+from raidjax import pcg_metrics as pm
+from trainers.config import PRESETS, from_agent_steps
+from trainers.mapoca import next_ranges
+from trainers.ppo_pcgrl_cli import method_policy
+
+# --- MA-POCA paper preset (item 6) ---------------------------------------------------------
+
+
+def test_agent_step_conversion_by_hand():
+    # 8192 // (256 * 3) = 10, so 11 arenas x 256 decisions x 3 players = 8448 > 8192 experiences
+    # (10 arenas would be 7680 <= 8192). 8448 // 256 = 33 minibatches wanted; the decisions
+    # 2816 = 2^8 x 11 have divisors ... 22, 32, 44 ...: 32 is nearest to 33.
+    assert from_agent_steps(8192, 256, 256, 3) == (11, 32)
+    # 1000 // (10 * 2) = 50 -> 51 arenas, 510 decisions, want 1020 // 100 = 10: divisor 10.
+    assert from_agent_steps(1000, 100, 10, 2) == (51, 10)
+
+
+def test_paper_preset_mirrors_the_reference_yaml():
+    p = PRESETS["paper"]
+    assert (p.anneal_lr, p.max_grad_norm, p.adam_eps, p.anneal_ent) == (False, 0.0, 1e-8, False)
+    assert (p.lr, p.ent_coef, p.clip_eps, p.lam, p.update_epochs, p.gamma) == (3e-4, 0.01, 0.2, 0.95, 3, 0.99)
+    assert (p.hidden, p.layers, p.heads, p.n_steps) == (256, 2, 4, 256)
+    assert (p.n_arenas, p.n_minibatches, p.decisions_per_update) == (11, 32, 2816)
+    assert p.redraw_every == 2
+    # max_steps 5e7 agent steps = ceil(5e7 / 3) decisions with 3 players alive
+    assert p.total_steps == 16_666_667 and 3 * (p.total_steps - 1) < 50_000_000 <= 3 * p.total_steps
+    cpu = PRESETS["cpu"]  # raidjax's own choices stay on the other presets
+    assert (cpu.anneal_lr, cpu.max_grad_norm, cpu.adam_eps) == (True, 0.5, 1e-5)
+
+
+# --- range redraw cadence ------------------------------------------------------------------
+
+
+def _redraw_steps(done_rows, every):
+    """Feed ``next_ranges`` one step at a time with a one-value range set equal to the step
+    number, so ``ranges`` records the step of each arena's last redraw."""
+    n = len(done_rows[0])
+    ranges, episode = jnp.zeros(n), jnp.zeros(n, jnp.int32)
+    seen = []
+    for t, row in enumerate(done_rows, start=1):
+        ranges, episode, redrawn = next_ranges(jax.random.PRNGKey(t), ranges, episode, jnp.asarray(row),
+                                               jnp.asarray([float(t)]), every)
+        seen.append(np.asarray(redrawn))
+    return np.asarray(ranges), np.asarray(episode), np.stack(seen)
+
+
+def test_range_redrawn_every_second_episode_of_an_arena():
+    # arena 0 ends episodes at steps 2, 5, 7, 9 (its 1st..4th): redraws after the 2nd and 4th;
+    # arena 1 never ends one; arena 2 ends one every step: redraws at steps 2, 4, 6, 8.
+    done = np.zeros((9, 3), bool)
+    done[[1, 4, 6, 8], 0] = True
+    done[:, 2] = True
+    ranges, episode, redrawn = _redraw_steps(done, every=2)
+    assert np.flatnonzero(redrawn[:, 0]).tolist() == [4, 8]  # steps 5 and 9 (0-based rows)
+    assert not redrawn[:, 1].any()
+    assert np.flatnonzero(redrawn[:, 2]).tolist() == [1, 3, 5, 7]
+    assert ranges.tolist() == [9.0, 0.0, 8.0] and episode.tolist() == [4, 0, 9]
+    # raidjax's option: every episode end redraws
+    _, _, redrawn1 = _redraw_steps(done, every=1)
+    np.testing.assert_array_equal(redrawn1, done)
+
+
+# --- Benchmark 1: training content 0.5, test content 1.0 ------------------------------------
+
+
+@pytest.mark.parametrize("protocol, train_cool, every", [("paper", 0.5, 2), ("raidjax", 1.0, 1)])
+def test_benchmark1_trains_at_cool_time_and_tests_at_one(protocol, train_cool, every):
+    scale = b1.SCALES["smoke"]
+    runs = b1.runs_of(scale, protocol)
+    _, contents, _ = b1._run_inputs(runs, 0)
+    cool = np.asarray(contents.skills.cool_time)[:, :3, 0]  # [run, player] skill slot 1
+    for r, c in zip(runs, cool, strict=True):
+        want = 0.5 if r["group"] == "table" else train_cool
+        np.testing.assert_allclose(c, want, err_msg=r["name"])
+    assert b1.config_of(scale, protocol).redraw_every == every
+    for i, kind, rng, _ in b1.eval_cells(runs):
+        group = runs[i]["group"]
+        assert kind == ("reference" if group == "table" else "test")
+        assert (rng in b1.TEST_RANGES) == (group != "table")
+        c = np.asarray(b1.content_of(kind, rng).skills.cool_time)[:3, 0]
+        np.testing.assert_allclose(c, 0.5 if group == "table" else 1.0)
+
+
+# --- Benchmark 2: equal groups --------------------------------------------------------------
+
+
+def _b_pc1_sd(n_a: int) -> float:
+    """B's PC1 SD by hand. Points (min-max scaling is the identity here): B = (0,0), (1,0) and
+    n_a copies of A = (0,1). With N = n_a + 2 the scatter sums are Sxx = (n_a+1)/N,
+    Syy = 2 n_a/N, Sxy = -n_a/N; the first axis is at angle θ = atan2(2 Sxy, Sxx - Syy) / 2, and
+    B's two points differ by (1, 0), so their SD (ddof 0) along the axis is |cos θ| / 2."""
+    n = n_a + 2
+    sxx, syy, sxy = (n_a + 1) / n, 2 * n_a / n, -n_a / n
+    return abs(math.cos(0.5 * math.atan2(2 * sxy, sxx - syy))) / 2
+
+
+def test_diversity_cuts_groups_to_equal_size_before_scaling_and_pca():
+    a = np.tile([[0.0, 1.0, 0.5, 0.5]], (6, 1))  # group A: 6 identical skills, any 2 of them are the same
+    b = np.asarray([[0.0, 0.0, 0.5, 0.5], [1.0, 0.0, 0.5, 0.5]])
+    c = np.asarray([[0.3, 0.3, 0.5, 0.5]])  # one kept skill only: left out of the cut set (SD undefined)
+    skills = np.concatenate([a, b, c])
+    groups = np.asarray(["A"] * 6 + ["B"] * 2 + ["C"])
+    errors = np.zeros(9)
+    unequal = pm.diversity(skills[:8], errors[:8], groups[:8])
+    equal = pm.diversity(skills, errors, groups, group_size=300)
+    assert unequal["B"]["pc1_sd"] == pytest.approx(_b_pc1_sd(6))  # 0.2774
+    assert equal["B"]["pc1_sd"] == pytest.approx(_b_pc1_sd(2))  # 0.3077
+    assert abs(equal["B"]["pc1_sd"] - unequal["B"]["pc1_sd"]) > 0.02
+    assert (equal["A"]["n"], equal["B"]["n"], unequal["A"]["n"]) == (2, 2, 6) and "C" not in equal
+    assert equal["A"]["pc1_sd"] == 0.0 and equal["B"]["param_sd"][0] == pytest.approx(0.5)
+
+
+def test_equal_groups_sizes_and_fixed_seed():
+    groups = np.asarray(["x"] * 5 + ["y"] * 3 + ["z"] * 400)
+    idx = pm.equal_groups(groups, 300, seed=1)
+    assert sorted(np.unique(groups[idx], return_counts=True)[1]) == [3, 3, 3]  # the smallest group
+    np.testing.assert_array_equal(idx, pm.equal_groups(groups, 300, seed=1))
+    assert set(range(5, 8)) <= set(idx.tolist())  # all of "y"
+    big = pm.equal_groups(groups[8:], 300, seed=1)
+    assert big.size == 300 and np.unique(big).size == 300  # capped at 300, without replacement
+
+
+def test_controllability_cut_to_equal_size():
+    # target 0.1: 4 episodes of error 0.05; target 0.2: 2 episodes of error 0.1 and 0.3.
+    # All pooled: (4 x 0.05 + 0.4) / 6 = 0.1; cut to 2 per target: (2 x 0.05 + 0.4) / 4 = 0.125.
+    gen = {"target": np.asarray([0.1] * 4 + [0.2] * 2), "win_rate": np.asarray([0.15] * 4 + [0.3, 0.5]),
+           "edits": np.full(6, 39)}
+    assert pm.controllability(gen)["err_mean"] == pytest.approx(0.1)
+    cut = pm.controllability(gen, group_size=300)
+    assert cut["err_mean"] == pytest.approx(0.125) and cut["n"] == 4
+    assert cut["per_target"][0.2]["err_mean"] == pytest.approx(0.2)
+
+
+def test_kept_episodes_need_two_decisions():
+    # The notebook keeps StepCount >= 2: a decision measures, then edits, so the kept measurement
+    # must follow >= 1 measured edit (paper); raidjax's protocol asks for 2 measured edits.
+    gen = {"target": np.full(4, 0.5), "win_rate": np.asarray([0.9, 0.7, 0.6, 0.5]), "edits": np.asarray([0, 1, 2, 39])}
+    paper, raid = pm.PROTOCOLS["paper"], pm.PROTOCOLS["raidjax"]
+    c = pm.controllability(gen, paper.min_edits)
+    assert c["n"] == 3 and c["err_mean"] == pytest.approx((0.2 + 0.1 + 0.0) / 3)
+    c = pm.controllability(gen, raid.min_edits)
+    assert c["n"] == 2 and c["err_mean"] == pytest.approx(0.05)
+
+
+# --- Benchmark 2: generation ----------------------------------------------------------------
+
+
+def test_paper_generation_arguments():
+    pr = pm.PROTOCOLS["paper"]
+    assert (pr.strict_length, pr.decisions, pr.greedy, pr.remeasure, pr.group_size) == (True, 40, True, False, 300)
+    assert pr.max_edits(6) == 39  # 40 decisions: the start measured, 39 measured edits, the 40th never measured
+    scale = b2.SCALES["paper"]
+    args = b2.generation_args(scale, pr, 40, 100)
+    assert (args.greedy, args.strict_length, args.max_edits, args.eval_gen_games, args.eval_games) == (
+        True, True, 39, 300, 0)
+    raid = b2.generation_args(scale, pm.PROTOCOLS["raidjax"], 40, 100)
+    assert (raid.greedy, raid.strict_length, raid.max_edits, raid.eval_gen_games, raid.eval_games) == (
+        False, False, 40, 300, 300)
+    assert b2.protocol_of(b2.SCALES["smoke"], "paper").max_edits(6) == 3  # smoke: 4 decisions
+    assert b2.SCALES["paper"].episodes // b2.SCALES["paper"].seeds == 1000  # 5 models x 1000 per target
+
+
+def test_greedy_generation_takes_the_argmax_of_each_branch():
+    hidden = (4,)
+    policy = method_policy(hidden, greedy=True)
+    net = pcg_net_params(hidden)
+    bias = np.zeros((pcg.N_PARAMS, pcg.N_CHOICES), np.float32)
+    bias[0, 4], bias[1, 0], bias[2, 2], bias[3, 1] = 1.0, 1.0, 1.0, 1.0  # argmax (4, 0, 2, 1)
+    net["params"]["pi"]["bias"] = jnp.asarray(bias.reshape(-1))
+    params = pcg.make_params(target=0.3, observe_target=False, n_games=1)
+    obs = jnp.zeros(pcg.obs_size(params))
+    skill, ones = jnp.asarray(pcg.LOW), jnp.ones(pcg.N_PARAMS)
+    state = pcg._started(skill, jnp.float32(0.3), jnp.float32(0.5), ones, skill, jnp.int32(0), params)
+    acts = {tuple(np.asarray(policy({"net": net, "method": jnp.int32(0)}, jax.random.PRNGKey(k), obs, state, params)))
+            for k in range(20)}
+    assert acts == {(4, 0, 2, 1)}  # every key: no sampling
+
+
+def pcg_net_params(hidden):
+    """ActorCritic weights with every kernel and bias zero (logits = the ``pi`` bias)."""
+    from trainers.ppo_pcgrl import ActorCritic
+
+    p = ActorCritic(hidden).init(jax.random.PRNGKey(0), jnp.zeros(4))
+    return jax.tree.map(jnp.zeros_like, jax.device_get(p))
+
+
+def test_strict_episodes_keep_the_last_measurement():
+    """Strict: every episode makes exactly max_edits edits although the target 0 is often met
+    (2-game measurements of 0 wins); the kept win rate is the generator's own last measurement
+    (eval_games=0), a multiple of 1/2. The non-strict run stops some episodes early."""
+    game = pcg.base_game().replace(config=raidjax.EnvConfig(max_decisions=60, n_substeps=1))
+    strict = pcg.make_params(target=0.0, n_games=2, max_edits=3, strict_length=True).replace(game=game)
+    key = jax.random.PRNGKey(0)
+    g = pm.generate(key, pcg.random_policy, strict, targets=(0.0,), episodes=12, eval_games=0)
+    assert (g["edits"] == 3).all()
+    np.testing.assert_array_equal(g["win_rate"], g["gen_win_rate"])
+    assert np.allclose(g["win_rate"] * 2, np.round(g["win_rate"] * 2))
+    loose = pm.generate(key, pcg.random_policy, strict.replace(strict_length=False), targets=(0.0,), episodes=12,
+                        eval_games=0)
+    assert (loose["edits"] < 3).any() and (loose["edits"][loose["edits"] < 3] >= 1).all()
+    assert loose["reached"][loose["edits"] < 3].all()

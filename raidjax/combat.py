@@ -175,11 +175,9 @@ def ticks_until_expired(left: jnp.ndarray, params: Params, n_ticks: int) -> jnp.
     """``int32[...]``: the tick (1..n_ticks) in which timers at ``left`` run out, ``n_ticks + 1`` if later."""
     tick = jnp.float32(TICK)
     when = jnp.full(left.shape, n_ticks + 1, jnp.int32)
-    for j in range(n_ticks, 0, -1):
-        left_j = left
-        for _ in range(j):
-            left_j = left_j - tick
-        when = jnp.where(expired(left_j, params), j, when)
+    for j in range(1, n_ticks + 1):
+        left = left - tick  # the same float32 countdown as advance_casts
+        when = jnp.where(expired(left, params) & (when > n_ticks), j, when)
     return when
 
 

@@ -234,10 +234,10 @@ def next_episode(key: jax.Array, state: State, params: Params) -> tuple[Observat
     Returns:
         ``(obs, state)`` of the new episode, shaped as ``reset``'s.
     """
-    _, fresh = reset(key, params)
+    obs, fresh = reset(key, params)
     cfg = params.config
     if not cfg.chains_episodes:
-        return observe(fresh, params), fresh
+        return obs, fresh
     b = state.pos.shape[0] - 1
     if cfg.carry_cooldowns:
         kept = (state.alive | (jnp.arange(b + 1) == b))[:, None] & state.recharging

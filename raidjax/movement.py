@@ -21,7 +21,6 @@ from raidjax.types import (
 from raidjax.utils import pick
 
 TICK = 0.02  # physics tick of the reference build (s)
-DECISION = 0.1  # decision period (s)
 HALF_ARENA = 12.25  # walls at x, y = +-HALF_ARENA
 DRAG = 0.92  # velocity factor per tick
 TURN_RATE = jnp.deg2rad(200.0)  # rad/s

@@ -13,7 +13,7 @@ import json
 
 import jax
 
-from raidjax import pcg_metrics as pm
+from raidjax.pcg import metrics as pm
 
 
 def main() -> None:

@@ -46,7 +46,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=2)
     args = ap.parse_args()
 
-    params = pcg.make_params(n_games=args.n_games)
+    params = pcg.make_pcg_params(n_games=args.n_games)
     _, states = jax.jit(jax.vmap(lambda k: pcg.reset(k, params)))(jax.random.split(jax.random.key(0), args.envs))
     rollout = make_rollout(params, args.steps)
     key = jax.random.key(1)

@@ -16,7 +16,7 @@ import numpy as np  # noqa: E402
 
 from experiments.runfolder import RunFolder, markdown_table  # noqa: E402
 
-# SPEC §9 (the paper's Table "Win rate between MARL and Heuristic agent", 500 games)
+# GAME.md §9 (the paper's Table "Win rate between MARL and Heuristic agent", 500 games)
 PAPER_WIN_RATE = {"PT-RD": (0.000, 0.002, 0.029, 0.058), "PT-HR": (0.089, 0.371, 0.698, 0.830),
                   "MA-POCA": (0.485, 0.857, 0.990, 0.990)}
 # the paper's Appendix F table: AdjustedScore at unseen ranges 3, 4, 19, 20 and the test average

@@ -17,8 +17,7 @@ import numpy as np  # noqa: E402
 
 from experiments.runfolder import RunFolder, markdown_table  # noqa: E402
 from raidjax import pcg  # noqa: E402
-from raidjax import pcg_metrics as pm  # noqa: E402
-from trainers.ppo_pcgrl_cli import summarize  # noqa: E402
+from raidjax.pcg import metrics as pm  # noqa: E402
 
 # Paper, controllability table: target -> (W_c mean, W_c SD, |W_t - W_c| mean, SD).
 PAPER_CONTROL = {
@@ -145,7 +144,7 @@ def _diversity_md(rows: list[dict]) -> str:
             + markdown_table(["target", "method", "n kept", "range", "cool time", "cast time", "coefficient",
                               "PC1", "PC1 own axis"], body)
             + "\n\nSkills with |W_t − W_c| < 0.1; normalisation and PCA over the pooled kept skills of all "
-              "methods (SPEC §11); `PC1 own axis`: SD along the (method, target) group's own first axis, "
+              "methods (GAME.md §11); `PC1 own axis`: SD along the (method, target) group's own first axis, "
               "a check that a lead does not come from the pooled axis; `–` where fewer than 2 skills were "
               "kept. `mean` rows: mean over targets.")
 
@@ -228,7 +227,7 @@ def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300
         method, and ``seconds``.
     """
     t0 = time.perf_counter()
-    summ = summarize(gens, protocol)
+    summ = pm.summarize(gens, protocol)
     crow, drow, yrow = controllability_rows(summ), diversity_rows(summ), yield_rows(gens)
     run.write_csv("controllability", crow)
     run.write_csv("diversity", drow)

@@ -1,4 +1,4 @@
-"""Benchmark 1 of the RaidEnv paper (SPEC §11): playtesting agents, end to end.
+"""Benchmark 1 of the RaidEnv paper (GAME.md §11): playtesting agents, end to end.
 
     python -m experiments.benchmark1 --scale {smoke,cpu,paper} --out DIR [--protocol {paper,raidjax}]
 
@@ -10,7 +10,7 @@ whole benchmark compiles once. The runs (``R`` = seeds, ``Q`` = population size)
 - ``robust/MA-POCA{1..4}`` x R: ranges drawn (see the protocols) from {5}, {5,9}, {5,9,13}, {5,9,13,17};
 - ``population/r{3,4,19,20}`` x Q: trained directly on each unseen test range.
 
-Protocols (``PROTOCOLS``; SPEC Revision 2 item 5):
+Protocols (``PROTOCOLS``; GAME.md §11):
 
 - ``paper`` (default), the reference configs: MA-POCA1..4 and the populations train on the
   reference content (players' cool time 0.5: ``RL_GENERALIZATION/JSON/train/*.json``,
@@ -38,12 +38,13 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
-from experiments.runfolder import RunFolder, atomic_write
-from raidjax.utils import fmt_seconds
+from experiments.runfolder import RunFolder
+from raidjax.utils import atomic_write, fmt_seconds
 from trainers import checkpoint
-from trainers.cli import MetricsLog
 from trainers.config import PRESETS, Config
-from trainers.mapoca import RANGE_TABLE, make_trainer, range_table, sample_actions
+from trainers.mapoca import RANGE_TABLE, make_trainer, range_table
+from trainers.metrics import MetricsLog
+from trainers.networks import sample_actions
 
 TABLE_RANGES = (5.0, 9.0, 13.0, 17.0)
 ROBUST_SETS = {"MA-POCA1": (5.0,), "MA-POCA2": (5.0, 9.0), "MA-POCA3": (5.0, 9.0, 13.0),
@@ -168,7 +169,7 @@ def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chu
     compile_s = time.perf_counter() - t0
     per_chunk = cfg.updates_per_chunk * cfg.decisions_per_update
     rf.log(f"train: {len(runs)} runs x {cfg.num_chunks} chunks x {per_chunk} decisions, compiled in {compile_s:.1f}s")
-    log = MetricsLog(rf.path("train", "metrics.jsonl").parent, keep_chunks=start)
+    log = MetricsLog(rf.path("train", "metrics.jsonl").parent, resume_update=start * cfg.updates_per_chunk)
     t_loop, done_here = time.perf_counter(), 0
     for c in range(start, cfg.num_chunks):
         if max_chunks is not None and c - start >= max_chunks:
@@ -179,7 +180,8 @@ def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chu
         el = time.perf_counter() - t_loop
         rate = done_here * per_chunk * len(runs) / el
         win = m["wins"] / np.maximum(m["episodes"], 1)
-        row = {"chunk": c, "env_steps": (c + 1) * per_chunk, "seconds": seconds_before + el, "steps_per_s": rate}
+        row = {"chunk": c, "update": (c + 1) * cfg.updates_per_chunk, "env_steps": (c + 1) * per_chunk,
+               "seconds": seconds_before + el, "steps_per_s": rate}
         row.update({f"win/{r['name']}/{r['seed']}": float(w) for r, w in zip(runs, win, strict=True)})
         log.write(row)
         groups = {g: float(np.mean([w for r, w in zip(runs, win, strict=True) if r["group"] == g]))
@@ -188,8 +190,9 @@ def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chu
                f"decisions/s  ETA {fmt_seconds((cfg.num_chunks - c - 1) * el / done_here)}  training win "
                + "  ".join(f"{g} {w:.2f}" for g, w in groups.items()))
         if (c + 1) % scale.checkpoint_chunks == 0 or c + 1 == cfg.num_chunks:
-            checkpoint.save(ckpt, runner, cfg, {"chunk": c + 1, "update": (c + 1) * cfg.updates_per_chunk,
-                                                "env_steps": (c + 1) * per_chunk, "seconds": seconds_before + el})
+            meta = {"chunk": c + 1, "update": (c + 1) * cfg.updates_per_chunk, "env_steps": (c + 1) * per_chunk,
+                    "seconds": seconds_before + el}
+            checkpoint.save(ckpt, runner, runner.params["actor"], cfg.to_dict(), meta)
     train_s = seconds_before + time.perf_counter() - t_loop
     return {"runs": len(runs), "decisions_per_run": cfg.num_chunks * per_chunk, "compile_seconds": compile_s,
             "train_seconds": train_s, "decisions_per_s": cfg.num_chunks * per_chunk * len(runs) / max(train_s, 1e-9)}

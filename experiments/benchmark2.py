@@ -1,4 +1,4 @@
-"""Benchmark 2 of the RaidEnv paper (SPEC §10–§11): controllable skill generation, as one
+"""Benchmark 2 of the RaidEnv paper (GAME.md §10–§11): controllable skill generation, as one
 resumable command::
 
     python -m experiments.benchmark2 --scale {smoke,cpu,paper} --out DIR [--seed N] [--protocol {paper,raidjax}]
@@ -9,7 +9,7 @@ one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
 1. ``train``: PPO-PCGRL (``trainers.ppo_pcgrl``) in jitted chunks, orbax checkpoints in
    ``DIR/checkpoints/ppo``, per-update metrics in ``csv/ppo_train.csv``, progress in ``log.txt``.
 2. ``generate``: the trained PPO, PCG-HR and PCG-RD generators run ``episodes`` episodes per target
-   (0.1..0.7) under the protocol (``raidjax.pcg_metrics.PROTOCOLS``). ``paper`` (default): strict
+   (0.1..0.7) under the protocol (``raidjax.pcg.metrics.PROTOCOLS``). ``paper`` (default): strict
    40-decision episodes, every decision measured with ``eval_games`` (300) PT-HR games, greedy PPO,
    each episode's last measured skill kept with that measurement. ``raidjax``: episodes end at the
    band, ``gen_games`` per measurement, sampled PPO, the final skill re-measured with
@@ -21,8 +21,8 @@ one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
 
 Variants beyond the paper's protocol (each recorded in ``config.json``): ``--pool-repeats`` (the
 generation environment pools the games of an unchanged skill, for all three generators),
-``--edit-cost``, ``--anchor-cost``, ``--edit-preferences``, ``--favourite-weight``, ``--one-lever``,
-``--goal-cost``, ``--ent-coef`` and ``--total-steps`` (PPO learner), ``--seeds``, ``--episodes``.
+``--edit-cost``, ``--goal-cost`` with ``--goal-axis`` (a style goal), ``--ent-coef`` and
+``--total-steps`` (PPO learner), ``--seeds``, ``--episodes``.
 
 The last stdout line is the JSON summary (also ``summary.json``).
 """
@@ -34,18 +34,19 @@ import csv
 import dataclasses
 import io
 import time
-import types
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from experiments.runfolder import RunFolder, atomic_write
+from experiments.runfolder import RunFolder
 from raidjax import pcg
-from raidjax import pcg_metrics as pm
-from raidjax.utils import fmt_seconds
-from trainers.ppo_pcgrl import Config, get_config, make_train
-from trainers.ppo_pcgrl_cli import _groups, evaluate, metric_rows, parse_signs
+from raidjax.pcg import metrics as pm
+from raidjax.utils import atomic_write, fmt_seconds
+from trainers import checkpoint
+from trainers.generate import evaluate, target_groups
+from trainers.metrics import update_rows
+from trainers.ppo_pcgrl import PPOConfig, get_config, make_train
 
 METHODS = ("PPO", "PCG-HR", "PCG-RD")
 FIELDS = ("target", "skill", "win_rate", "gen_win_rate", "edits", "reached")
@@ -62,7 +63,7 @@ class Scale:
         episodes: generation episodes per target and method (PPO: split evenly over seeds).
         parts: generation is done in this many saved parts (``episodes`` divisible by it).
         gen_games: PT-HR games per generator measurement (``raidjax`` protocol).
-        eval_games: PT-HR games behind each kept win rate (300 in the SPEC): every measurement
+        eval_games: PT-HR games behind each kept win rate (300 in GAME.md §11): every measurement
             of the ``paper`` protocol, the re-measurement of the ``raidjax`` protocol.
         decisions: overrides the ``paper`` protocol's 40 decisions per episode (``None``: 40).
         tsne_per_target: at most this many skills per (method, target) in the t-SNE figure.
@@ -92,13 +93,13 @@ class Scale:
 SCALES = {
     # Seconds: a tiny learner, a few games per measurement, 4-decision paper-protocol episodes (used
     # by the tests; its numbers mean nothing).
-    "smoke": Scale(preset="cpu", ppo=dict(n_envs=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2,
+    "smoke": Scale(preset="cpu", ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2,
                                           hidden=(16, 16), n_games=8, max_edits=6),
                    seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=16, decisions=4,
                    fast_compile=True),
     # ~20 min on 2 shared CPU cores: the cpu preset (one model for all targets, target observed; N = 50
     # games per training measurement, 20 480 steps as in docs/RESULTS.md), 12 episodes per target and
-    # method with 100-game generator measurements and the SPEC's 300-game final measurement.
+    # method with 100-game generator measurements and the 300-game final measurement of GAME.md §11.
     "cpu": Scale(preset="cpu", ppo=dict(total_steps=20480), seeds=1, chunk=5, episodes=12, parts=6,
                  gen_games=100, eval_games=300),
     # The paper's budgets: one model per fixed (unobserved) target, 5 seeds, 20 000 steps, N = 100
@@ -109,8 +110,8 @@ SCALES = {
 }
 
 
-def ppo_config(scale: Scale) -> Config:
-    """The PPO ``Config`` of a scale (its preset with the scale's overrides)."""
+def ppo_config(scale: Scale) -> PPOConfig:
+    """The ``PPOConfig`` of a scale (its preset with the scale's overrides)."""
     return get_config(scale.preset, **scale.ppo)
 
 
@@ -125,20 +126,11 @@ def _parse(argv=None) -> argparse.Namespace:
                     "final skill re-measured, unequal groups")
     ap.add_argument("--edit-cost", type=float, help="PPO learner penalty per tick moved (env reward units; "
                     "default: the scale's, 0 = the paper's reward)")
-    ap.add_argument("--anchor-cost", type=float, help="PPO learner penalty per squared tick of displacement "
-                    "from the episode's start skill (a diversity term; default 0 = off)")
-    ap.add_argument("--edit-preferences", action="store_true", help="PPO learner: random per-episode edit "
-                    "preferences (observed) weight the edit cost per parameter (a diversity term)")
-    ap.add_argument("--favourite-weight", type=float, help="PPO learner: the edit preferences are one favourite "
-                    "parameter per episode with this weight in [0, 1], the others (4 - w) / 3 (implies "
-                    "--edit-preferences)")
-    ap.add_argument("--goal-cost", type=float, help="PPO learner penalty per squared tick of distance to a "
-                    "random corner of the parameter box drawn per episode and observed (a diversity term; 0 = off)")
-    ap.add_argument("--goal-axis", type=parse_signs, help="with --goal-cost: goals at the two ends of this style "
-                    "axis, 4 comma-separated signs in {-1,0,1} for range,cool_time,cast_time,coefficient "
-                    "(1,1,1,1 = heavy vs light skills) instead of independent corners")
-    ap.add_argument("--one-lever", action="store_true", help="PPO policy: edit only the parameter the env "
-                    "designates per step, drawn uniformly (as PCG-HR picks a random one; a diversity term)")
+    ap.add_argument("--goal-cost", type=float, help="with --goal-axis: PPO learner penalty per squared tick of "
+                    "distance to the episode's style goal (default 0 = off)")
+    ap.add_argument("--goal-axis", type=str, help="a style goal per episode at one end of this axis, 4 "
+                    "comma-separated signs in {-1,0,1} for range,cool_time,cast_time,coefficient (1,1,1,1 = heavy "
+                    "vs light skills)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
     ap.add_argument("--total-steps", type=int, help="PPO generator steps per group (default: the scale's)")
     ap.add_argument("--seeds", type=int, help="PPO seeds trained together (default: the scale's)")
@@ -146,41 +138,35 @@ def _parse(argv=None) -> argparse.Namespace:
     ap.add_argument("--pool-repeats", action="store_true",
                     help="generation env: re-measuring an unchanged skill pools its games (all three "
                     "generators, training and generation)")
-    return ap.parse_args(argv)
+    args = ap.parse_args(argv)
+    if args.goal_axis is not None:
+        try:
+            args.goal_axis = pcg.parse_axis(args.goal_axis)
+        except ValueError as err:
+            ap.error(f"--goal-axis: {err}")
+    return args
 
 
 class _Learner:
-    """The PPO learner of a run: groups, jitted init/chunk, the checkpoint manager."""
+    """The PPO learner of a run: groups, jitted init, its checkpoints folder."""
 
     def __init__(self, run: RunFolder, scale: Scale, seed: int):
-        import orbax.checkpoint as ocp
-
         self.config = ppo_config(scale)
         self.train = make_train(self.config)
-        pairs, self.labels = _groups(self.config, scale.seeds)
+        pairs, self.labels = target_groups(self.config, scale.seeds)
         self.G = len(self.labels)
         self.keys = jax.random.split(jax.random.key(seed), self.G)
         self.tg = jnp.asarray(pairs)
         self.init = jax.jit(jax.vmap(self.train.init), compiler_options=scale.compiler_options)
-        self.steps_per_update = self.config.n_envs * self.config.n_steps
-        self.ocp = ocp
-        self.mgr = ocp.CheckpointManager(
-            (run.out / "checkpoints" / "ppo").absolute(),
-            options=ocp.CheckpointManagerOptions(max_to_keep=2, enable_async_checkpointing=False))
+        self.steps_per_update = self.config.n_arenas * self.config.n_steps
+        self.ckpt = run.out / "checkpoints" / "ppo"
 
-    def restore(self, step: int | None = None):
-        """The runner of checkpoint ``step`` (default: latest), or ``None`` without checkpoints."""
-        step = self.mgr.latest_step() if step is None else step
-        if step is None:
-            return None
-        abstract = jax.eval_shape(self.init, self.keys, self.tg)
-        return self.mgr.restore(step, args=self.ocp.args.StandardRestore(abstract))
-
-    def restore_params(self, step: int):
-        """The network weights of checkpoint ``step`` (leading group axis), read without a target
-        structure, so checkpoints whose environment state predates a newer ``PCGState`` field
-        still give their weights for generation."""
-        return self.mgr.restore(step, args=self.ocp.args.StandardRestore())["params"]
+    def restore(self):
+        """``(runner, update)`` of the latest checkpoint, or ``(None, 0)`` without checkpoints."""
+        if checkpoint.latest_step(self.ckpt) is None:
+            return None, 0
+        runner, _, meta = checkpoint.restore(self.ckpt, jax.eval_shape(self.init, self.keys, self.tg))
+        return runner, int(meta["update"])
 
 
 def _read_train_csv(path, upto: int) -> list[dict]:
@@ -200,11 +186,10 @@ def stage_train(run: RunFolder, scale: Scale, seed: int) -> dict:
     over resumes), ``steps`` (generator steps per group), ``groups``, ``updates``, ``seconds``."""
     t_start = time.perf_counter()  # wall clock of this invocation (compiles included)
     lr = _Learner(run, scale, seed)
-    total = lr.config.n_updates
+    total = lr.config.num_updates
     run.log(f"train: preset {scale.preset}, {lr.G} group(s), {total} updates x {lr.steps_per_update} steps, "
             f"N = {lr.config.n_games} games per measurement")
-    runner = lr.restore()
-    start = 0 if runner is None else int(np.asarray(runner["update"]).reshape(-1)[0])
+    runner, start = lr.restore()
     if runner is None:
         runner = lr.init(lr.keys, lr.tg)
         run.log(f"train: initialised (compile included) in {fmt_seconds(time.perf_counter() - t_start)}")
@@ -236,17 +221,16 @@ def stage_train(run: RunFolder, scale: Scale, seed: int) -> dict:
         u += n
         steps_done += n * lr.steps_per_update * lr.G
         wall = wall0 + time.perf_counter() - t_start
-        new = metric_rows(u - n, metrics, lr.steps_per_update)
+        new = update_rows(u - n, jax.device_get(metrics), lr.steps_per_update)
         rows += [{**{k: v for k, v in r.items() if k != "final_error_per_group"}, "wall_s": wall} for r in new]
         run.write_csv("ppo_train", rows)  # before the checkpoint: a resume drops rows past it, never leaves gaps
-        lr.mgr.save(u, args=lr.ocp.args.StandardSave(runner))
+        checkpoint.save(lr.ckpt, runner, runner["params"], lr.config.to_dict(), {"update": u}, max_to_keep=2)
         rate = steps_done / max(time.perf_counter() - t_rate, 1e-9)
         eta = (total - u) * lr.steps_per_update * lr.G / max(rate, 1e-9)
         last = rows[-1]
         run.log(f"train: update {u}/{total} steps {u * lr.steps_per_update} steps/s {rate:.1f} chunk {dt:.1f}s "
                 f"ETA {fmt_seconds(eta)} reward {last['reward']:.2f} final_err {last['final_error']:.3f} "
                 f"edits {last['edits']:.1f} entropy {last['entropy']:.2f}")
-    lr.mgr.wait_until_finished()
     train_s = rows[-1]["wall_s"] if rows else 0.0
     return {"train_seconds": train_s, "steps": total * lr.steps_per_update, "groups": lr.G, "updates": total,
             "n_games": lr.config.n_games, "seconds": train_s}
@@ -291,31 +275,31 @@ def protocol_of(scale: Scale, name: str) -> pm.Protocol:
     return pr
 
 
-def generation_args(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: int) -> types.SimpleNamespace:
-    """The ``ppo_pcgrl_cli.evaluate`` arguments of a protocol: per-edit games, greedy, strict
-    length, measured edits per episode (``pr.max_edits(max_edits)``), re-measurement games (0: none)."""
-    return types.SimpleNamespace(eval_gen_games=scale.gen_games if pr.remeasure else scale.eval_games,
-                                 greedy=pr.greedy, temperature=1.0, eval_episodes=episodes,
-                                 eval_games=scale.eval_games if pr.remeasure else 0, no_baselines=False,
-                                 strict_length=pr.strict_length, max_edits=pr.max_edits(max_edits))
+def generation_kwargs(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: int) -> dict:
+    """``trainers.generate.evaluate``'s keyword arguments under a protocol: per-edit games, greedy,
+    strict length, measured edits per episode (``pr.max_edits(max_edits)``), re-measurement games
+    (0: none)."""
+    return dict(gen_games=scale.gen_games if pr.remeasure else scale.eval_games, greedy=pr.greedy,
+                episodes=episodes, eval_games=scale.eval_games if pr.remeasure else 0,
+                strict_length=pr.strict_length, max_edits=pr.max_edits(max_edits))
 
 
 def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "paper") -> dict:
     """Generate with PPO (weights from the final checkpoint), PCG-HR and PCG-RD, in saved parts,
     under ``protocol`` (``pm.PROTOCOLS`` key). Returns ``episodes`` per method, ``parts`` and ``seconds``."""
     lr = _Learner(run, scale, seed)
-    total = lr.config.n_updates
-    if lr.mgr.latest_step() != total:
-        raise RuntimeError(f"no final PPO checkpoint (update {total}) in {run.out / 'checkpoints' / 'ppo'}")
-    params = lr.restore_params(total)
+    total = lr.config.num_updates
+    if checkpoint.latest_step(lr.ckpt) != total:
+        raise RuntimeError(f"no final PPO checkpoint (update {total}) in {lr.ckpt}")
+    params, _ = checkpoint.load_policy_weights(lr.ckpt)
     per_part = scale.episodes // scale.parts
-    args = generation_args(scale, protocol_of(scale, protocol), lr.config.max_edits, per_part)
+    kwargs = generation_kwargs(scale, protocol_of(scale, protocol), lr.config.max_edits, per_part)
     t0, done_here, parts = time.perf_counter(), 0, []
     for i in range(scale.parts):
         path = run.path("gen_parts", f"part_{i:03d}.npz")
         if not path.exists():
             t = time.perf_counter()
-            gens = evaluate(jax.random.fold_in(jax.random.key(seed + 1), i), lr.config, params, lr.labels, args)
+            gens = evaluate(jax.random.fold_in(jax.random.key(seed + 1), i), lr.config, params, lr.labels, **kwargs)
             save_generated(path, gens)
             done_here += 1
             eta = (time.perf_counter() - t0) / done_here * (scale.parts - i - 1)
@@ -337,10 +321,7 @@ def main(argv=None) -> dict:
 
     a = _parse(argv)
     scale = SCALES[a.scale]
-    prefs = a.edit_preferences or a.favourite_weight is not None
-    ppo = {"edit_cost": a.edit_cost, "anchor_cost": a.anchor_cost, "edit_preferences": prefs or None,
-           "favourite_weight": a.favourite_weight, "one_lever": a.one_lever or None,
-           "goal_cost": a.goal_cost, "goal_axis": a.goal_axis,
+    ppo = {"edit_cost": a.edit_cost, "goal_cost": a.goal_cost, "goal_axis": a.goal_axis,
            "ent_coef": a.ent_coef, "total_steps": a.total_steps,
            "pool_repeats": a.pool_repeats or None}
     scale = dataclasses.replace(scale, ppo={**scale.ppo, **{k: v for k, v in ppo.items() if v is not None}},

@@ -1,4 +1,4 @@
-"""Measure the PT-HR / PT-RD win-rate table and print it beside the paper's (SPEC §9).
+"""Measure the PT-HR / PT-RD win-rate table and print it beside the paper's (GAME.md §9).
 
     python -m raidjax.calibrate --games 2000 [--seed S] [--rules reference|clean] [--substeps 5|1] [--json F]
 
@@ -13,9 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
-import tempfile
 import time
 
 import jax
@@ -23,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
+from raidjax.utils import atomic_write
 
 RANGES = (5.0, 9.0, 13.0, 17.0)
 PAPER = {"heuristic": (0.089, 0.371, 0.698, 0.830), "random": (0.000, 0.002, 0.029, 0.058)}
@@ -73,17 +72,6 @@ def markdown(table: dict, n_games: int, ranges=RANGES) -> str:
     return "\n".join(lines)
 
 
-def write_json_atomic(path: str, payload: dict) -> None:
-    """Write ``payload`` as JSON to ``path`` atomically (temp file + rename)."""
-    folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=".json")
-    os.chmod(tmp, 0o644)
-    with os.fdopen(fd, "w") as f:
-        json.dump(payload, f, indent=2)
-    os.replace(tmp, path)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="PT-HR / PT-RD win rates vs the RaidEnv paper")
     ap.add_argument("--games", type=int, default=2000, help="games per cell (default 2000)")
@@ -108,8 +96,9 @@ def main(argv=None) -> int:
     games = args.games * len(RANGES) * 2
     print(f"{games} games in {seconds:.1f} s (compile included).")
     if args.json:
-        write_json_atomic(args.json, {"games_per_cell": args.games, "seed": args.seed, "rules": args.rules,
-                                      "n_substeps": args.substeps, "seconds": seconds, "table": table, "paper": PAPER})
+        payload = {"games_per_cell": args.games, "seed": args.seed, "rules": args.rules,
+                   "n_substeps": args.substeps, "seconds": seconds, "table": table, "paper": PAPER}
+        atomic_write(args.json, json.dumps(payload, indent=2))
     ok = all(
         abs(w - p) <= TOLERANCE[n]
         for n, rows in table.items()

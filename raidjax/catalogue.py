@@ -18,7 +18,7 @@ BASE_SKILL: dict[str, float] = dict(
 
 # fmt: off
 SKILLS: dict[str, dict[str, float]] = {
-    # The reference player skill (SPEC §4); its range is the experiment variable.
+    # The reference player skill (GAME.md §4); its range is the experiment variable.
     "magic_missile": dict(school=1),
     # Mage.
     "fireball": dict(school=2, target_type=TARGET_NONE, projectile_speed=12.0, cast_time=1.0,
@@ -64,7 +64,7 @@ SKILLS: dict[str, dict[str, float]] = {
                         projectile_speed=0.0, cast_time=0.0, cool_time=1.0, cost=0.0, range=2.5,
                         coefficient=0.1, projectile_radius=2.5, hit_count=1, area_offset=0.0,
                         cast_on_casting=1, cast_on_channeling=1),
-    # The reference boss (SPEC §7).
+    # The reference boss (GAME.md §7).
     "dragon_breath": dict(school=9, target_type=TARGET_NONE, projectile_speed=20.0, cast_time=0.1,
                           cool_time=0.5, cost=0.0, range=12.0, coefficient=1.1),
     "dragon_slash": dict(school=9, target_type=TARGET_REGION, projectile_speed=0.0,

@@ -1,4 +1,4 @@
-"""Casting, cooldowns/charges/mana, the projectile pool and damage (SPEC §5–§6), one arena.
+"""Casting, cooldowns/charges/mana, the projectile pool and damage (GAME.md §5–§6), one arena.
 
 Shapes: ``U`` units (boss last), ``S`` skill slots, ``M`` projectile slots,
 ``E = M + U*S + U`` hit events per sub-step (projectiles, instant skills, basic attacks).
@@ -67,7 +67,7 @@ def skill_targets(state: State, params: Params) -> tuple[jnp.ndarray, jnp.ndarra
 
 
 def usable_slot(state: State, params: Params, valid: jnp.ndarray, s: int) -> jnp.ndarray:
-    """``bool[U]``: can slot ``s`` start a cast now (SPEC §5, with the casting/channeling rules)?
+    """``bool[U]``: can slot ``s`` start a cast now (GAME.md §5, with the casting/channeling rules)?
 
     A cast of a skill with ``cast_on_moving = 0`` is a *channel*; other casts are plain casts.
     """
@@ -273,7 +273,7 @@ def effect_table(params: Params) -> jnp.ndarray:
     int_scale = 1.0 + (st.intelligence - NEUTRAL_PRIMARY) / 100.0
     power = jnp.where(attack, st.attack_power[:, None], st.spell_power[:, None])
     scale = jnp.where(attack, str_scale[:, None], int_scale[:, None])
-    base = jnp.floor(coef * power + 1e-3) * scale  # SPEC §6: int(coefficient x power)
+    base = jnp.floor(coef * power + 1e-3) * scale  # GAME.md §6: int(coefficient x power)
     heal = jnp.floor(coef * (st.spell_power * int_scale)[:, None] + 1e-3)
 
     def per_unit(x):

@@ -54,7 +54,7 @@ def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) 
     """Apply ``actions: int32[P]`` for ``dt`` seconds to the players (the boss is untouched).
 
     Learner actions use the velocity-impulse/drag model; ``ACTION_HEURISTIC`` moves the
-    player by setting its position (SPEC §9). Dead players do not move.
+    player by setting its position (GAME.md §9). Dead players do not move.
     """
     n_players = actions.shape[0]
     n_ticks = round(dt / TICK)

@@ -1,4 +1,4 @@
-"""Per-player observations (SPEC §8): entity-structured, fixed shapes, with a flat view.
+"""Per-player observations (GAME.md §8): entity-structured, fixed shapes, with a flat view.
 
 Normalisation: positions and velocities / 20, cooldowns / 5, HP / max, range / 20,
 damage / 100, cast time / 5. Dead entities are zeros *and* masked out.

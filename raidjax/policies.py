@@ -1,4 +1,4 @@
-"""Scripted playtesting policies (SPEC §9), pure and jittable.
+"""Scripted playtesting policies (GAME.md §9), pure and jittable.
 
 A policy is ``policy(key, obs, state, params) -> int32[P]`` for one arena.
 """

@@ -5,13 +5,14 @@ and a line to its target, players coloured by slot, HP bars, casting rings, miss
 attacks.
 
     python -m raidjax.render --policy heuristic --skill-range 9 --out replay.gif
+    python -m trainers.render --policy runs/mapoca_cpu_r9 --skill-range 9 --out team.gif   # a trained team
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
+import io
+from collections.abc import Callable
 
 import jax
 import numpy as np
@@ -19,6 +20,7 @@ from PIL import Image, ImageDraw
 
 from raidjax.movement import HALF_ARENA
 from raidjax.types import PROJ_AREA, Params
+from raidjax.utils import atomic_write
 
 PLAYER_COLOURS = [(66, 135, 245), (46, 204, 113), (241, 196, 15), (155, 89, 182), (230, 126, 34)]
 BOSS_COLOUR = (200, 40, 40)
@@ -95,22 +97,22 @@ def render_gif(trace, params: Params, path: str, size: int = 360, every: int = 2
         The number of frames written (the episode's end is always included).
     """
     frames = _frames(trace, params, size, every)
-    folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=".gif")
-    os.close(fd)
-    os.chmod(tmp, 0o644)
-    frames[0].save(tmp, save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0, optimize=True)
-    os.replace(tmp, path)
+    buf = io.BytesIO()
+    frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0,
+                   optimize=True)
+    atomic_write(path, buf.getvalue())
     return len(frames)
 
 
-def main(argv=None) -> None:
+def main(argv=None, load_policy: Callable | None = None) -> None:
+    """The replay command. ``load_policy(path) -> policy`` turns a ``--policy`` that is not a
+    built-in name into a policy (``trainers.render`` passes the MA-POCA loader); without it only
+    the built-in policies are accepted."""
     import raidjax
 
     ap = argparse.ArgumentParser(description="Render a replay GIF of one episode")
     ap.add_argument("--policy", default="heuristic",
-                    help="random | heuristic | noop | a MA-POCA checkpoint directory")
+                    help="random | heuristic | noop" + (" | a trained run's folder" if load_policy else ""))
     ap.add_argument("--skill-range", type=float, default=9.0)
     ap.add_argument("--players", default="mage,mage,mage", help="comma-separated class presets")
     ap.add_argument("--seed", type=int, default=0)
@@ -120,10 +122,11 @@ def main(argv=None) -> None:
     params = raidjax.make_params(players=args.players.split(","), skill_range=args.skill_range)
     if args.policy in raidjax.policies.BY_NAME:
         policy = raidjax.policies.BY_NAME[args.policy]
-    else:
-        from trainers.checkpoint import load_policy  # a trained MA-POCA team
-
+    elif load_policy is not None:
         policy = load_policy(args.policy)
+    else:
+        ap.error(f"--policy: {args.policy!r} is not one of {sorted(raidjax.policies.BY_NAME)}; "
+                 "a trained MA-POCA team renders with python -m trainers.render --policy RUN_FOLDER")
     record = jax.jit(raidjax.logs.record_episode, static_argnames=("policy", "n_decisions"))
     trace, summary = record(jax.random.key(args.seed), params, policy, args.decisions)
     n = render_gif(trace, params, args.out)

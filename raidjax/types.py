@@ -12,11 +12,11 @@ import jax
 from flax import struct
 
 N_SLOTS = 3  # skill slots per unit
-# Discrete actions of a player (SPEC §4). Casting slot k is action 7 + k.
+# Discrete actions of a player (GAME.md §4). Casting slot k is action 7 + k.
 NOOP, FORWARD, BACKWARD, ROTATE_LEFT, ROTATE_RIGHT, STRAFE_LEFT, STRAFE_RIGHT = range(7)
 CAST_1 = 7
 N_ACTIONS = CAST_1 + N_SLOTS  # 10; slots not in use are masked
-# Reserved id: the player is driven by the built-in scripted heuristic (PT-HR, SPEC §9) this
+# Reserved id: the player is driven by the built-in scripted heuristic (PT-HR, GAME.md §9) this
 # decision. It moves by setting positions, which no learner action can express.
 ACTION_HEURISTIC = N_ACTIONS
 
@@ -108,7 +108,7 @@ class EnvConfig:
 
 @struct.dataclass
 class Stats:
-    """Character statistics, every field ``float32[U]`` (SPEC §3; ranges in ``content.STAT_SPECS``)."""
+    """Character statistics, every field ``float32[U]`` (GAME.md §3; ranges in ``content.STAT_SPECS``)."""
 
     max_hp: jax.Array
     hp_regen: jax.Array  # HP per second
@@ -136,7 +136,7 @@ class Stats:
 
 @struct.dataclass
 class Skills:
-    """Skill parameters, every field of shape ``[U, S]`` (SPEC §3; ranges in ``content.SKILL_SPECS``).
+    """Skill parameters, every field of shape ``[U, S]`` (GAME.md §3; ranges in ``content.SKILL_SPECS``).
 
     Enums and booleans are stored as ``int32``; everything else ``float32``.
     """
@@ -223,7 +223,7 @@ class State:
 
 @struct.dataclass
 class Observation:
-    """What each player sees (SPEC §8), every field with a leading player axis ``P``.
+    """What each player sees (GAME.md §8), every field with a leading player axis ``P``.
 
     Shapes with ``P`` players, ``S`` skill slots, ``K`` observed projectiles.
     """

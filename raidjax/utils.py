@@ -1,10 +1,13 @@
-"""Small array helpers that stay fast under ``vmap`` on CPU, and two host-side reporting helpers
-(``machine``, ``fmt_seconds``) shared by the benchmarks, trainers and experiments."""
+"""Small array helpers that stay fast under ``vmap`` on CPU, and host-side helpers shared by the
+simulator, trainers and experiments: ``atomic_write`` (every file a user keeps), ``machine`` and
+``fmt_seconds`` (reports and progress lines)."""
 
 from __future__ import annotations
 
 import os
 import platform
+import tempfile
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -75,3 +78,25 @@ def fmt_seconds(s: float) -> str:
     if s >= 3600:
         return f"{int(s // 3600)}h{int(s % 3600 // 60):02d}m"
     return f"{int(s // 60)}m{int(s % 60):02d}s" if s >= 60 else f"{s:.0f}s"
+
+
+def atomic_write(path: str | Path, data: str | bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``, so
+    a reader sees the old file or the new one, never half of one. Returns ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode() if isinstance(data, str) else data)
+            f.flush()
+            os.fsync(f.fileno())
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual mode
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path

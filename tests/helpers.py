@@ -2,11 +2,11 @@
 
 Every scenario uses the reference team size (3 players + the boss, 3 skill slots) and one
 ``EnvConfig``, ``CLEAN1`` (the ``"clean"`` rules at one sub-step: exact timers, so expected
-decisions follow from SPEC times by hand), so the module-level jitted ``STEP`` / ``RESET``
+decisions follow from the rulebook's times by hand), so the module-level jitted ``STEP`` / ``RESET``
 compile once for the whole suite; only content *values* change between tests (no retracing).
 The ``"reference"`` rule switches are tested in ``test_rules.py``.
 
-Expected numbers in the tests are derived by hand from SPEC.md, never copied from a run.
+Expected numbers in the tests are derived by hand from docs/GAME.md, never copied from a run.
 """
 
 from __future__ import annotations
@@ -162,13 +162,10 @@ def rollout(key, state, params, actions):
 
 
 def pcg_state(skill=(10.0, 0.55, 1.0, 0.75), target=0.5, w=0.3, edits=0, games=4):
-    """A hand-made ``raidjax.pcg.PCGState``: ``skill`` float32[4] (also the start), target, last
-    win rate ``w``, ``edits`` made, ``games`` behind ``w``; ones as preferences, lever 0, the skill
-    as goal."""
+    """A hand-made ``raidjax.pcg.PCGState``: ``skill`` float32[4], target, last win rate ``w``,
+    ``edits`` made, ``games`` behind ``w``; the skill as goal."""
     from raidjax import pcg
 
     return pcg.PCGState(skill=jnp.asarray(skill, jnp.float32), target=jnp.float32(target), win_rate=jnp.float32(w),
                         edits=jnp.int32(edits), done=jnp.bool_(False), reached=jnp.bool_(False),
-                        games=jnp.float32(games), start=jnp.asarray(skill, jnp.float32),
-                        preferences=jnp.ones(4, jnp.float32), lever=jnp.int32(0),
-                        goal=jnp.asarray(skill, jnp.float32))
+                        games=jnp.float32(games), goal=jnp.asarray(skill, jnp.float32))

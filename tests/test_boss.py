@@ -1,4 +1,4 @@
-"""The boss (SPEC §7), projectile deliveries (§5) and the reference kill counts.
+"""The boss (GAME.md §7), projectile deliveries (§5) and the reference kill counts.
 
 Distances: a decision is 0.1 s; the boss chases at 6 u/s (0.6 per decision); attack 1 is a
 straight missile at 20 u/s, radius 0.2; MagicMissile flies at 15 u/s.
@@ -232,7 +232,7 @@ def test_area_hits_each_unit_only_once_while_it_lingers():
     assert bool(s1.projectiles.live[0])  # still lingering
 
 
-# --- reference kill counts (SPEC §4, §7) ----------------------------------------------------
+# --- reference kill counts (GAME.md §4, §7) ----------------------------------------------------
 
 def test_reference_boss_dies_after_20_front_hits():
     p = make()

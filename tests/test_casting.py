@@ -1,4 +1,4 @@
-"""Casting, cool times, charges, mana, haste and the cast-condition flags (SPEC §3, §5).
+"""Casting, cool times, charges, mana, haste and the cast-condition flags (GAME.md §3, §5).
 
 One caster (player 0, 4 units in front of a passive boss, inside MagicMissile's range 5); the
 other players are dead. A decision is 0.1 s, so a cast of c seconds started on decision 1 fires
@@ -24,7 +24,7 @@ def solo(params, mana=None, pos=(0.0, -4.0)):
 
 def expected_fires(cast, cool, n, charges=1):
     """Fire decisions within n decisions for a skill held down from decision 1 (hand model of
-    SPEC §5: a cast of c decisions fires at its end; the recharge timer starts when a cast
+    GAME.md §5: a cast of c decisions fires at its end; the recharge timer starts when a cast
     completes with full charges, one charge returns every k decisions while below the max;
     a returned charge can start a cast on the next decision)."""
     c, k = round(cast / 0.1), round(cool / 0.1)

@@ -1,4 +1,4 @@
-"""Content: reference values (SPEC §3, §4, §7), presets (catalogue), make_params overrides and
+"""Content: reference values (GAME.md §3, §4, §7), presets (catalogue), make_params overrides and
 validation of bad input (out of range, NaN, non-integer, unknown, wrong shapes)."""
 
 from __future__ import annotations
@@ -206,7 +206,7 @@ def test_validate_params_rejects_hand_built_params(ref_params):
 
 
 def test_ranges_are_the_spec_tables():
-    # A few ranges from SPEC §3 ("controllable parameters"), player side.
+    # A few ranges from GAME.md §3 ("controllable parameters"), player side.
     want = {"max_hp": (0, 1000), "max_mana": (0, 100), "spell_power": (0, 100), "move_speed": (1, 2),
             "attack_power": (0, 100), "attack_range": (1, 10), "attack_speed": (1, 2), "armor": (0, 100),
             "evasion": (0, 100), "parry": (0, 100), "strength": (1, 100), "critical": (0, 100),

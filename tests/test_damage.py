@@ -1,8 +1,8 @@
-"""Damage, statistics, back attacks, heals, basic attacks, regeneration and rewards (SPEC §3, §6, §8).
+"""Damage, statistics, back attacks, heals, basic attacks, regeneration and rewards (GAME.md §3, §6, §8).
 
 Most cases use an *instant* MagicMissile with no cast time (projectile speed 0, cast time 0):
 the hit lands on decision 1, so one jitted step measures one hit. Base damage is
-int(0.5 x 100) = 50 (SPEC §4).
+int(0.5 x 100) = 50 (GAME.md §4).
 """
 
 from __future__ import annotations
@@ -99,7 +99,7 @@ def test_percentage_stats(player, boss, expected):
     assert abs(got - expected) < 0.06
 
 
-# --- back attacks (SPEC §6) ----------------------------------------------------------------
+# --- back attacks (GAME.md §6) ----------------------------------------------------------------
 
 def behind(theta_deg, dist=4.0):
     """Player 0 at ``theta`` degrees from the boss's rear (+y: the boss faces player 1 at -y)."""
@@ -239,7 +239,7 @@ def test_random_stats_use_the_step_key():
 
 
 def test_boss_back_attacks_pay_no_bonus():
-    # SPEC §6: the back-attack multiplier is for players only; a boss missile from behind a
+    # GAME.md §6: the back-attack multiplier is for players only; a boss missile from behind a
     # player deals its base 55 even with the boss's multiplier and mastery maxed.
     p = make(passive_boss=False, boss_overrides={"back_attack_multiplier": 3.0, "mastery": 100})
     s = scenario(p, players=((0.0, -4.0), (11, -11), (-11, -11)), boss=(0.0, 0.0),

@@ -15,7 +15,16 @@ import raidjax
 from raidjax.types import WIN
 from trainers import checkpoint
 from trainers.config import PRESETS, Config, load_config
-from trainers.mapoca import Batch, advantages, lambda_returns, loss_fn, make_train, make_trainer, team_reward
+from trainers.mapoca import (
+    Batch,
+    advantages,
+    lambda_returns,
+    load_policy,
+    loss_fn,
+    make_train,
+    make_trainer,
+    team_reward,
+)
 from trainers.networks import Actor, Critic, masked_logits
 
 TINY = PRESETS["cpu"].replace(n_arenas=4, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1,
@@ -241,9 +250,10 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path):
     assert not np.array_equal(np.asarray(straight.params["actor"]["params"]["pi"]["kernel"]),
                               np.asarray(r0.params["actor"]["params"]["pi"]["kernel"]))
     ckpt = tmp_path / "checkpoints"
-    checkpoint.save(ckpt, r1, cfg, {"chunk": 1, "update": 2, "env_steps": 64, "seconds": 1.0})
+    checkpoint.save(ckpt, r1, r1.params["actor"], cfg.to_dict(), {"chunk": 1, "update": 2, "env_steps": 64,
+                                                              "seconds": 1.0})
     restored, cfg2, meta = checkpoint.restore(tmp_path, jax.eval_shape(init, keys))
-    assert cfg2 == cfg and meta["update"] == 2 and checkpoint.latest_step(ckpt) == 2
+    assert Config.from_dict(cfg2) == cfg and meta["update"] == 2 and checkpoint.latest_step(ckpt) == 2
     for a, b in zip(jax.tree.leaves(r1), jax.tree.leaves(restored), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     resumed, m_resumed = chunk(restored)
@@ -251,7 +261,7 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
     # The trained policy loads as a pure, hashable raidjax policy.
-    policy = checkpoint.load_policy(tmp_path, seed=1, deterministic=True)
+    policy = load_policy(tmp_path, seed=1, deterministic=True)
     hash(policy)
     first = lambda tree: jax.tree.map(lambda x: x[0, 0], tree)  # seed 0, arena 0
     obs, state = first(r0.obs), first(r0.env_state)
@@ -260,15 +270,15 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path):
     assert np.asarray(obs.action_mask)[np.arange(3), actions].all()
 
     with pytest.raises(checkpoint.CheckpointError, match="does not exist"):
-        checkpoint.load_policy(tmp_path / "nope")
+        load_policy(tmp_path / "nope")
     (tmp_path / "empty").mkdir()
     with pytest.raises(checkpoint.CheckpointError, match="no finished checkpoint"):
-        checkpoint.load_policy(tmp_path / "empty")
+        load_policy(tmp_path / "empty")
     for f in (ckpt / "2" / "policy").rglob("*"):  # corrupt every file of the policy item
         if f.is_file():
             f.write_bytes(b"garbage")
     with pytest.raises(checkpoint.CheckpointError, match="corrupted"):
-        checkpoint.load_policy(tmp_path)
+        load_policy(tmp_path)
 
 
 def test_range_table_tiles_sets_uniformly():

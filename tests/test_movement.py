@@ -1,4 +1,4 @@
-"""Player movement (SPEC §4), walls (§1-2) and the PT-HR script's movement (§9).
+"""Player movement (GAME.md §4), walls (§1-2) and the PT-HR script's movement (§9).
 
 Expected kinematics come from the spec's rule, integrated tick by tick here:
 every 0.02 s tick ``v <- 0.92 (v + a)`` then ``p <- p + v dt`` (this order is the one that
@@ -20,7 +20,7 @@ FAR_BOSS = (8.0, 8.0)
 
 
 def spec_integrate(v0, a, n_ticks):
-    """Reference integration of SPEC §4: returns (velocity, displacement) after n ticks."""
+    """Reference integration of GAME.md §4: returns (velocity, displacement) after n ticks."""
     v = np.array(v0, np.float64)
     a = np.array(a, np.float64)
     p = np.zeros(2)
@@ -115,7 +115,7 @@ def test_boss_is_kept_inside_walls():
     assert float(out.pos[BOSS, 1]) <= 12.25 - 1.125 + 1e-5  # the dragon's 2.25 box
 
 
-# --- PT-HR movement (SPEC §9) -------------------------------------------------------------
+# --- PT-HR movement (GAME.md §9) -------------------------------------------------------------
 
 def hr_solo(params, pos, boss=(0.0, 8.0)):
     return scenario(params, players=(pos, (-11, -11), (11, -11)), boss=boss, **DEAD)

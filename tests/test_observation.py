@@ -1,4 +1,4 @@
-"""Observations (SPEC §8): layout, normalisation, masks of dead entities, projectiles, action mask.
+"""Observations (GAME.md §8): layout, normalisation, masks of dead entities, projectiles, action mask.
 
 Layouts (see ``types.Observation``): self = pos(2) heading(2) vel(2) hp mana casting progress,
 then per skill slot recharge/5, charges/charge, range/20, damage/100, cast time/5 (feature-major:

@@ -1,4 +1,4 @@
-"""Batched playtesting and the scripted policies (SPEC §9).
+"""Batched playtesting and the scripted policies (GAME.md §9).
 
 Three compilations of ``playtest`` (unbatched, per-game and per-group params); the per-game and
 per-group contents are chosen so that every game's outcome is certain:

@@ -1,4 +1,4 @@
-"""The paper's protocols (SPEC Revision 2 items 5 and 6) on small hand-made cases: the MA-POCA
+"""The paper's protocols (GAME.md items 5 and 6) on small hand-made cases: the MA-POCA
 ``paper`` preset, the range redraw cadence, Benchmark 1's training/test content, and Benchmark 2's
 generation (strict, greedy, last measured skill) and equal-size groups. Expected values are
 derived by hand in the comments."""
@@ -16,10 +16,10 @@ import raidjax
 from experiments import benchmark1 as b1
 from experiments import benchmark2 as b2
 from raidjax import pcg
-from raidjax import pcg_metrics as pm
+from raidjax.pcg import metrics as pm
 from trainers.config import PRESETS, from_agent_steps
+from trainers.generate import method_policy
 from trainers.mapoca import next_ranges
-from trainers.ppo_pcgrl_cli import method_policy
 
 # --- MA-POCA paper preset (item 6) ---------------------------------------------------------
 
@@ -168,11 +168,11 @@ def test_paper_generation_arguments():
     assert (pr.strict_length, pr.decisions, pr.greedy, pr.remeasure, pr.group_size) == (True, 40, True, False, 300)
     assert pr.max_edits(6) == 39  # 40 decisions: the start measured, 39 measured edits, the 40th never measured
     scale = b2.SCALES["paper"]
-    args = b2.generation_args(scale, pr, 40, 100)
-    assert (args.greedy, args.strict_length, args.max_edits, args.eval_gen_games, args.eval_games) == (
+    args = b2.generation_kwargs(scale, pr, 40, 100)
+    assert tuple(args[k] for k in ("greedy", "strict_length", "max_edits", "gen_games", "eval_games")) == (
         True, True, 39, 300, 0)
-    raid = b2.generation_args(scale, pm.PROTOCOLS["raidjax"], 40, 100)
-    assert (raid.greedy, raid.strict_length, raid.max_edits, raid.eval_gen_games, raid.eval_games) == (
+    raid = b2.generation_kwargs(scale, pm.PROTOCOLS["raidjax"], 40, 100)
+    assert tuple(raid[k] for k in ("greedy", "strict_length", "max_edits", "gen_games", "eval_games")) == (
         False, False, 40, 300, 300)
     assert b2.protocol_of(b2.SCALES["smoke"], "paper").max_edits(6) == 3  # smoke: 4 decisions
     assert b2.SCALES["paper"].episodes // b2.SCALES["paper"].seeds == 1000  # 5 models x 1000 per target
@@ -185,10 +185,10 @@ def test_greedy_generation_takes_the_argmax_of_each_branch():
     bias = np.zeros((pcg.N_PARAMS, pcg.N_CHOICES), np.float32)
     bias[0, 4], bias[1, 0], bias[2, 2], bias[3, 1] = 1.0, 1.0, 1.0, 1.0  # argmax (4, 0, 2, 1)
     net["params"]["pi"]["bias"] = jnp.asarray(bias.reshape(-1))
-    params = pcg.make_params(target=0.3, observe_target=False, n_games=1)
+    params = pcg.make_pcg_params(target=0.3, observe_target=False, n_games=1)
     obs = jnp.zeros(pcg.obs_size(params))
-    skill, ones = jnp.asarray(pcg.LOW), jnp.ones(pcg.N_PARAMS)
-    state = pcg._started(skill, jnp.float32(0.3), jnp.float32(0.5), ones, skill, jnp.int32(0), params)
+    skill = jnp.asarray(pcg.LOW)
+    state = pcg.env._started(skill, jnp.float32(0.3), jnp.float32(0.5), skill, params)
     acts = {tuple(np.asarray(policy({"net": net, "method": jnp.int32(0)}, jax.random.PRNGKey(k), obs, state, params)))
             for k in range(20)}
     assert acts == {(4, 0, 2, 1)}  # every key: no sampling
@@ -207,7 +207,7 @@ def test_strict_episodes_keep_the_last_measurement():
     (2-game measurements of 0 wins); the kept win rate is the generator's own last measurement
     (eval_games=0), a multiple of 1/2. The non-strict run stops some episodes early."""
     game = pcg.base_game().replace(config=raidjax.EnvConfig(max_decisions=60, n_substeps=1))
-    strict = pcg.make_params(target=0.0, n_games=2, max_edits=3, strict_length=True).replace(game=game)
+    strict = pcg.make_pcg_params(target=0.0, n_games=2, max_edits=3, strict_length=True).replace(game=game)
     key = jax.random.PRNGKey(0)
     g = pm.generate(key, pcg.random_policy, strict, targets=(0.0,), episodes=12, eval_games=0)
     assert (g["edits"] == 3).all()

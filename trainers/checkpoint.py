@@ -1,22 +1,19 @@
-"""Checkpoints of MA-POCA runs (orbax-checkpoint) and loading a trained policy.
+"""Checkpoints of both trainers (orbax-checkpoint): save, restore, the latest step.
 
-A run directory ``DIR`` holds ``DIR/checkpoints/<update>/`` with four items: ``state`` (the
-whole ``Runner`` of every seed: weights, optimiser, arenas, PRNG key), ``policy`` (the actor
-weights alone, leading seed axis), ``config`` (``Config.to_dict``) and ``meta`` (chunk, update,
-decisions, seconds). Orbax writes each checkpoint into a temporary directory and renames it
-when complete, so an interrupted save never shows up as a checkpoint.
+A run folder ``DIR`` holds ``DIR/checkpoints/<update>/`` with four items: ``state`` (the whole
+training state of every seed: weights, optimiser, environments, PRNG key), ``policy`` (the
+policy's weights alone, leading seed axis), ``config`` (the trainer's config as a dict) and
+``meta`` (update, chunk, decisions, seconds). Orbax writes each checkpoint into a temporary
+directory and renames it when complete, so an interrupted save never shows up as a checkpoint.
+Loading a trained policy is each algorithm's (``trainers.mapoca.load_policy``), on top of
+``load_policy_weights``.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import jax
 import orbax.checkpoint as ocp
-
-from trainers.config import Config
-from trainers.mapoca import sample_actions
-from trainers.networks import Actor
 
 
 class CheckpointError(RuntimeError):
@@ -29,8 +26,16 @@ def _manager(directory: Path, max_to_keep: int | None = 3, create: bool = True) 
                                  item_names=("state", "policy", "config", "meta"))
 
 
-def save(directory: str | Path, runner, config: Config, meta: dict, max_to_keep: int = 3) -> Path:
-    """Write a checkpoint of ``runner`` (pytree, any leading seed axis) at step ``meta['update']``.
+def save(directory: str | Path, state, policy, config: dict, meta: dict, max_to_keep: int = 3) -> Path:
+    """Write a checkpoint at step ``meta['update']``.
+
+    Args:
+        directory: the checkpoints folder (``DIR/checkpoints``).
+        state: the training state (pytree, any leading seed axis).
+        policy: the policy's weights (pytree, same leading axis).
+        config: JSON-able dict of the trainer's config.
+        meta: JSON-able dict with at least ``update``.
+        max_to_keep: older checkpoints beyond this many are deleted.
 
     Returns:
         The checkpoint's directory ``directory/<update>``.
@@ -39,9 +44,9 @@ def save(directory: str | Path, runner, config: Config, meta: dict, max_to_keep:
     step = int(meta["update"])
     with _manager(directory, max_to_keep) as mngr:
         mngr.save(step, args=ocp.args.Composite(
-            state=ocp.args.StandardSave(runner),
-            policy=ocp.args.StandardSave(runner.params["actor"]),
-            config=ocp.args.JsonSave(config.to_dict()),
+            state=ocp.args.StandardSave(state),
+            policy=ocp.args.StandardSave(policy),
+            config=ocp.args.JsonSave(config),
             meta=ocp.args.JsonSave(meta),
         ), force=True)
         mngr.wait_until_finished()
@@ -79,64 +84,33 @@ def _restore(directory: Path, step: int, **items):
                               f"{type(e).__name__}: {e}") from e
 
 
-def restore(path: str | Path, abstract_runner) -> tuple[object, Config, dict]:
-    """Restore the latest (or the given) checkpoint into the structure of ``abstract_runner``
+def restore(path: str | Path, abstract_state) -> tuple[object, dict, dict]:
+    """Restore the latest (or the given) checkpoint into the structure of ``abstract_state``
     (e.g. ``jax.eval_shape`` of the vmapped ``init``).
 
     Returns:
-        ``(runner, config, meta)``.
+        ``(state, config dict, meta dict)``.
 
     Raises:
         CheckpointError: missing, incomplete or corrupted checkpoint, or one of another shape.
     """
     directory, step = _resolve(path)
-    out = _restore(directory, step, state=ocp.args.StandardRestore(abstract_runner),
+    out = _restore(directory, step, state=ocp.args.StandardRestore(abstract_state),
                    config=ocp.args.JsonRestore(), meta=ocp.args.JsonRestore())
     if out.meta is None or out.config is None:
         raise CheckpointError(f"checkpoint {directory / str(step)} is corrupted or incomplete: no config/meta")
-    return out.state, Config.from_dict(out.config), dict(out.meta)
+    return out.state, dict(out.config), dict(out.meta)
 
 
-def load_config(path: str | Path) -> Config:
-    """The ``Config`` stored with the latest (or the given) checkpoint."""
+def load_config(path: str | Path) -> dict:
+    """The config dict stored with the latest (or the given) checkpoint."""
     directory, step = _resolve(path)
-    out = _restore(directory, step, config=ocp.args.JsonRestore())
-    return Config.from_dict(out.config)
+    return dict(_restore(directory, step, config=ocp.args.JsonRestore()).config)
 
 
-def make_policy(actor: Actor, actor_params, deterministic: bool = False):
-    """A pure ``policy(key, obs, state, params) -> int32[P]`` for one arena (``raidjax.playtest``
-    compatible; the weights are baked in as constants, the function is hashable by identity)."""
-
-    def policy(key, obs, state, params):
-        actions, _ = sample_actions(key, actor.apply(actor_params, obs), obs.alive, deterministic)
-        return actions
-
-    return policy
-
-
-def load_policy(path: str | Path, seed: int = 0, deterministic: bool | None = None):
-    """Load a trained team as ``policy(key, obs, state, params) -> int32[P]``.
-
-    Args:
-        path: the run directory (``--out``), its ``checkpoints`` directory, or one checkpoint.
-        seed: which of the run's seeds (index into the seed axis).
-        deterministic: greedy actions instead of sampling (default: the run's ``deterministic_eval``).
-
-    Returns:
-        The policy (reuse the same object across ``playtest`` calls to avoid recompiling).
-
-    Raises:
-        CheckpointError: missing, incomplete or corrupted checkpoint, or ``seed`` out of range.
-    """
+def load_policy_weights(path: str | Path) -> tuple[object, dict]:
+    """``(policy weights with the leading seed axis, config dict)`` of the latest (or the given)
+    checkpoint; raises ``CheckpointError`` when missing or unreadable."""
     directory, step = _resolve(path)
     out = _restore(directory, step, policy=ocp.args.StandardRestore(), config=ocp.args.JsonRestore())
-    cfg = Config.from_dict(out.config)
-    weights = out.policy
-    n_seeds = jax.tree.leaves(weights)[0].shape[0]
-    if not 0 <= seed < n_seeds:
-        raise CheckpointError(f"seed: {seed} not in the checkpoint's {n_seeds} seeds")
-    weights = jax.tree.map(lambda x: jax.numpy.asarray(x[seed]), weights)
-    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention)
-    det = cfg.deterministic_eval if deterministic is None else deterministic
-    return make_policy(actor, weights, det)
+    return out.policy, dict(out.config)

@@ -1,12 +1,12 @@
-"""MA-POCA (Cohen et al. 2021; SPEC §12) as one pure, jittable JAX program, PureJaxRL style.
+"""MA-POCA (Cohen et al. 2021; GAME.md §12) as one pure, jittable JAX program, PureJaxRL style.
 
 ``make_train(config)(key)`` runs a whole training run on device: ``n_arenas`` auto-resetting
 raidjax arenas roll out ``n_steps`` decisions inside ``lax.scan``, λ-returns and counterfactual
 advantages are computed, and ``update_epochs x n_minibatches`` Adam steps follow, all inside
 one scan over updates. ``make_trainer`` exposes the pieces (``init``, ``update``, ``chunk``) that
-the CLI (``trainers.cli``) drives chunk by chunk for progress, logs and checkpoints.
+the CLI (``trainers.mapoca_cli``) drives chunk by chunk for progress, logs and checkpoints.
 
-Reward (SPEC §8, §12). ``raidjax.step`` pays player ``i``: ``r_i = 0.01 d_i + 1.0 w`` (``d_i``
+Reward (GAME.md §8, §12). ``raidjax.step`` pays player ``i``: ``r_i = 0.01 d_i + 1.0 w`` (``d_i``
 the damage its hits did to the boss this step, ``w`` = the boss died this step). MA-POCA
 trains every agent on its own + its teammates' individual rewards + the group reward, i.e. on
 the one team reward ``r = 0.01 sum_i d_i + 1.0 w = sum_i r_i - (P - 1) w`` (the win bonus is a
@@ -28,6 +28,7 @@ acted (was alive at t), normalised over those entries of the whole update.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import jax
@@ -39,8 +40,9 @@ import raidjax
 from raidjax.content import with_player_skill
 from raidjax.env import DAMAGE_REWARD, WIN_REWARD
 from raidjax.types import WIN, Observation, Params, State
+from trainers import checkpoint
 from trainers.config import Config
-from trainers.networks import Actor, Critic
+from trainers.networks import Actor, Critic, sample_actions
 
 
 @struct.dataclass
@@ -180,18 +182,6 @@ def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: 
         "clip_frac": jnp.sum((jnp.abs(ratio - 1) > clip_eps) * m) / n,
     }
     return loss, aux
-
-
-def sample_actions(key, logits: jax.Array, alive: jax.Array, deterministic: bool = False):
-    """Sample from masked logits ``[..., P, A]``; dead players get action 0.
-
-    Returns:
-        ``(actions int32[..., P], logp float32[..., P])``.
-    """
-    a = jnp.argmax(logits, -1) if deterministic else jax.random.categorical(key, logits)
-    a = jnp.where(alive, a, 0).astype(jnp.int32)
-    logp = jnp.take_along_axis(jax.nn.log_softmax(logits), a[..., None], axis=-1)[..., 0]
-    return a, logp
 
 
 class Trainer(NamedTuple):
@@ -388,7 +378,35 @@ def summarize(m: dict) -> dict:
     return out
 
 
-if __name__ == "__main__":
-    from trainers.cli import main
+def make_policy(actor: Actor, actor_params, deterministic: bool = False):
+    """A pure ``policy(key, obs, state, params) -> int32[P]`` for one arena (``raidjax.playtest``
+    compatible; the weights are baked in as constants, the function is hashable by identity)."""
 
-    main()
+    def policy(key, obs, state, params):
+        return sample_actions(key, actor.apply(actor_params, obs), obs.alive, deterministic)[0]
+
+    return policy
+
+
+def load_policy(path: str | Path, seed: int = 0, deterministic: bool | None = None):
+    """Load a trained team as ``policy(key, obs, state, params) -> int32[P]``.
+
+    Args:
+        path: the run folder (``--out``), its ``checkpoints`` folder, or one checkpoint.
+        seed: which of the run's seeds (index into the seed axis).
+        deterministic: greedy actions instead of sampling (default: the run's ``deterministic_eval``).
+
+    Returns:
+        The policy (reuse the same object across ``playtest`` calls to avoid recompiling).
+
+    Raises:
+        checkpoint.CheckpointError: missing, incomplete or corrupted checkpoint, or ``seed`` out of range.
+    """
+    weights, config = checkpoint.load_policy_weights(path)
+    cfg = Config.from_dict(config)
+    n_seeds = jax.tree.leaves(weights)[0].shape[0]
+    if not 0 <= seed < n_seeds:
+        raise checkpoint.CheckpointError(f"seed: {seed} not in the checkpoint's {n_seeds} seeds")
+    weights = jax.tree.map(lambda x: jnp.asarray(x[seed]), weights)
+    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention)
+    return make_policy(actor, weights, cfg.deterministic_eval if deterministic is None else deterministic)

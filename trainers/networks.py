@@ -1,4 +1,4 @@
-"""Flax networks of MA-POCA (SPEC §12): a shared entity-attention actor and a centralised critic
+"""Flax networks of MA-POCA (GAME.md §12): a shared entity-attention actor and a centralised critic
 that gives both the group value V(s) and the counterfactual baselines Q(s, a_-i).
 
 Shapes: ``P`` players, ``A = raidjax.types.N_ACTIONS`` actions, ``H`` hidden width, ``...`` any
@@ -189,3 +189,15 @@ class Critic(nn.Module):
     def __call__(self, obs: Observation, actions: jax.Array):
         """``(value [...], baseline [..., P])``."""
         return self.value(obs), self.baseline(obs, actions)
+
+
+def sample_actions(key, logits: jax.Array, alive: jax.Array, deterministic: bool = False):
+    """Sample from masked logits ``[..., P, A]``; dead players get action 0.
+
+    Returns:
+        ``(actions int32[..., P], logp float32[..., P])``.
+    """
+    a = jnp.argmax(logits, -1) if deterministic else jax.random.categorical(key, logits)
+    a = jnp.where(alive, a, 0).astype(jnp.int32)
+    logp = jnp.take_along_axis(jax.nn.log_softmax(logits), a[..., None], axis=-1)[..., 0]
+    return a, logp

@@ -1,14 +1,10 @@
-"""PPO-PCGRL (controllable PCGRL, SPEC §10) on ``raidjax.pcg``: a PureJaxRL-style, scan-based learner.
+"""PPO-PCGRL (controllable PCGRL, GAME.md §10) on ``raidjax.pcg``: a PureJaxRL-style, scan-based learner.
 
-``make_train(config)`` returns ``train(key, target=None)``: the whole run as one jittable function
-(vmappable over seeds and, in the per-target mode, over targets). The CLI runs the same update
-in chunks so that it can print progress, write metrics and save atomic orbax checkpoints::
+``make_train(config) -> train(key, target=None)``: the whole run as one jittable function
+(vmappable over seeds and, in the per-target mode, over targets). ``trainers.ppo_pcgrl_cli`` runs
+the same update in chunks with progress, metrics and checkpoints::
 
-    python -m trainers.ppo_pcgrl --preset cpu --total-steps 8192 --seeds 1 --out runs/ppo_cpu
-
-The last stdout line is one JSON object: ``mean_error`` (PPO), ``heuristic_mean_error`` (PCG-HR),
-``random_mean_error`` (PCG-RD), all on the same protocol (targets 0.1..0.7, final skills measured
-with 300 games), and ``seconds``.
+    python -m trainers.ppo_pcgrl_cli --preset cpu --total-steps 8192 --seeds 1 --out runs/ppo_cpu
 """
 
 from __future__ import annotations
@@ -27,18 +23,23 @@ from raidjax import pcg
 
 
 @dataclasses.dataclass(frozen=True)
-class Config:
-    """PPO and environment settings (hashable)."""
+class PPOConfig:
+    """PPO and generator-environment settings (hashable, so it can be a static argument).
 
-    n_envs: int = 32  # generator episodes stepped in parallel
+    The names shared with ``trainers.config.Config`` (MA-POCA) mean the same: ``n_arenas`` parallel
+    environments (here generator episodes), ``n_steps`` rollout length per update, ``lam`` the λ
+    of GAE, and so on.
+    """
+
+    n_arenas: int = 32  # generator episodes stepped in parallel
     n_steps: int = 8  # rollout horizon per update
-    total_steps: int = 20480  # generator steps (edits) over all envs
+    total_steps: int = 20480  # generator steps (edits) over all arenas
     update_epochs: int = 8  # samples are expensive (each is 50 games): reuse them more
     n_minibatches: int = 4
     lr: float = 2e-3
     anneal_lr: bool = True
     gamma: float = 0.95
-    gae_lambda: float = 0.9
+    lam: float = 0.9
     clip_eps: float = 0.2
     ent_coef: float = 0.003
     vf_coef: float = 0.5
@@ -52,63 +53,60 @@ class Config:
     strict_length: bool = False
     max_edits: int = 40
     pool_repeats: bool = False  # env: re-measuring an unchanged skill pools its games (pcg.PCGParams)
-    # learner-side diversity term: penalty per unit change of pcg.displacement (squared ticks from the
-    # episode's start skill; it telescopes to -anchor_cost * displacement of the final skill). > 0 also
-    # turns on the env's observe_start, so the policy sees its displacement. 0 = off.
-    anchor_cost: float = 0.0
-    # env: per-episode random edit preferences (pcg.PCGParams.edit_preferences), observed; edit_cost
-    # is then charged per tick times the moved parameter's preference, so the policy must learn to
-    # reach the target with whichever parameters an episode makes cheap.
-    edit_preferences: bool = False
-    # env: with edit_preferences, one favourite parameter per episode weighs this much in the edit
-    # cost, the others (4 - w) / 3 (pcg.PCGParams.favourite_weight); None = the softmax draw.
-    favourite_weight: float | None = None
-    # policy: edit only the parameter the env designates for this step (pcg.PCGParams.observe_lever,
-    # drawn uniformly, observed), as PCG-HR edits a random one; the policy picks how far to move it
-    # (or to hold). Keeps a learned generator from moving one favourite parameter in every episode.
-    one_lever: bool = False
-    # learner-side style term: penalty per unit change of the squared distance, in ticks, to the
-    # episode's random corner goal (pcg.PCGParams.observe_goal, turned on by > 0); it telescopes to
-    # goal_cost * (d^2(final) - d^2(start)), so the generator is paid to end near its goal, and random
-    # goals spread its output toward the extremes of the skills that meet a target. 0 = off.
-    goal_cost: float = 0.0
-    # env: with goal_cost > 0, draw the goal as one end of this style axis (pcg.PCGParams.goal_axis,
-    # 4 signs; (1, 1, 1, 1) = heavy vs light skills) instead of an independent corner. None = corners.
+    # A style goal: the env draws a goal at one end of ``goal_axis`` per episode (pcg.PCGParams.goal_axis;
+    # (1, 1, 1, 1) = heavy vs light skills) and the learner pays goal_cost per unit change of the squared
+    # distance to it in ticks, which telescopes to goal_cost * (d^2(final) - d^2(start)): the generator is
+    # paid to end near its goal, spreading its skills along the axis. None / 0 = off.
     goal_axis: tuple | None = None
+    goal_cost: float = 0.0
 
     def __post_init__(self):
         if self.goal_axis is not None:  # JSON gives a list; the env needs a hashable static field
-            object.__setattr__(self, "goal_axis", tuple(self.goal_axis))
-            if self.goal_cost <= 0:
-                raise ValueError(f"goal_axis: value {self.goal_axis} needs goal_cost > 0")
-        batch = self.n_envs * self.n_steps
+            object.__setattr__(self, "goal_axis", pcg.check_axis(self.goal_axis))
+        if (self.goal_axis is None) != (self.goal_cost == 0):
+            raise ValueError(f"goal_cost: value {self.goal_cost} with goal_axis {self.goal_axis}: a style goal "
+                             "needs both (goal_cost > 0 and an axis such as (1, 1, 1, 1)), or neither")
+        batch = self.n_arenas * self.n_steps
         for name, allowed, ok in (
-                ("edit_cost", ">= 0", self.edit_cost >= 0), ("anchor_cost", ">= 0", self.anchor_cost >= 0),
-                ("goal_cost", ">= 0", self.goal_cost >= 0),
+                ("edit_cost", ">= 0", self.edit_cost >= 0), ("goal_cost", ">= 0", self.goal_cost >= 0),
                 ("ent_coef", ">= 0", self.ent_coef >= 0), ("lr", "> 0", self.lr > 0),
                 ("n_games", ">= 1", self.n_games >= 1),
-                ("n_minibatches", f"a divisor of n_envs * n_steps = {batch}",
+                ("n_minibatches", f"a divisor of n_arenas * n_steps = {batch}",
                  self.n_minibatches >= 1 and batch % self.n_minibatches == 0)):
             if not ok:
                 raise ValueError(f"{name}: value {getattr(self, name)} must be {allowed}")
 
     @property
-    def n_updates(self) -> int:
-        return max(1, self.total_steps // (self.n_envs * self.n_steps))
+    def num_updates(self) -> int:
+        """PPO updates per run (at least 1)."""
+        return max(1, self.total_steps // (self.n_arenas * self.n_steps))
 
-    @property
-    def observe_start(self) -> bool:
-        return self.anchor_cost > 0
+    def replace(self, **kw) -> PPOConfig:
+        """A copy with fields changed; unknown fields raise ``TypeError``."""
+        return dataclasses.replace(self, **kw)
+
+    def to_dict(self) -> dict:
+        """JSON-able dict of every field."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> PPOConfig:
+        """Inverse of ``to_dict`` (JSON lists become tuples); raises ``ValueError`` naming unknown keys."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(f"config: unknown keys {unknown}; known: {sorted(known)}")
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
 
 
 PRESETS = {
-    # The reference run (SPEC §10): batch 16, buffer 120, lr 3e-4, entropy 0.005, clip 0.2, λ 0.99,
+    # The reference run (GAME.md §10): batch 16, buffer 120, lr 3e-4, entropy 0.005, clip 0.2, λ 0.99,
     # 3 epochs, 4 x 256, γ 0.99, horizon 30, 20 000 steps; one model per target, target not observed.
-    "paper": Config(n_envs=4, n_steps=30, total_steps=20_000, update_epochs=3, n_minibatches=8, lr=3e-4,
-                    anneal_lr=False, gamma=0.99, gae_lambda=0.99, clip_eps=0.2, ent_coef=0.005,
-                    hidden=(256, 256, 256, 256), reward_scale=1.0, n_games=100, observe_target=False),
+    "paper": PPOConfig(n_arenas=4, n_steps=30, total_steps=20_000, update_epochs=3, n_minibatches=8, lr=3e-4,
+                       anneal_lr=False, gamma=0.99, lam=0.99, clip_eps=0.2, ent_coef=0.005,
+                       hidden=(256, 256, 256, 256), reward_scale=1.0, n_games=100, observe_target=False),
     # One model for all targets (target and last win rate observed), many parallel episodes.
-    "cpu": Config(),
+    "cpu": PPOConfig(),
 }
 
 
@@ -134,7 +132,6 @@ class ActorCritic(nn.Module):
 class Transition(NamedTuple):
     obs: jax.Array
     action: jax.Array
-    branches: jax.Array  # float32[4]: 1 on the branches the policy decides (all, or the lever)
     logp: jax.Array
     value: jax.Array
     reward: jax.Array
@@ -142,73 +139,55 @@ class Transition(NamedTuple):
     valid: jax.Array
 
 
-def env_params(config: Config, target=None) -> pcg.PCGParams:
+def env_params(config: PPOConfig, target=None) -> pcg.PCGParams:
     """``PCGParams`` for training; ``target`` (``float32[2]`` low/high, traced ok) overrides the config."""
-    p = pcg.make_params(target=tuple(config.target), n_games=config.n_games, max_edits=config.max_edits,
-                        strict_length=config.strict_length, observe_target=config.observe_target,
-                        pool_repeats=config.pool_repeats, observe_start=config.observe_start,
-                        edit_preferences=config.edit_preferences, favourite_weight=config.favourite_weight,
-                        observe_lever=config.one_lever, observe_goal=config.goal_cost > 0,
-                        goal_axis=config.goal_axis)
+    p = pcg.make_pcg_params(target=tuple(config.target), n_games=config.n_games, max_edits=config.max_edits,
+                            strict_length=config.strict_length, observe_target=config.observe_target,
+                            pool_repeats=config.pool_repeats, goal_axis=config.goal_axis)
     if target is not None:
         target = jnp.asarray(target, jnp.float32)
         p = p.replace(target_low=target[0], target_high=target[1])
     return p
 
 
-def edit_penalty(config: Config, action: jax.Array, old: pcg.PCGState, new: pcg.PCGState) -> jax.Array:
+def edit_penalty(config: PPOConfig, action: jax.Array, old: pcg.PCGState, new: pcg.PCGState) -> jax.Array:
     """Learner-side cost of one edit in env reward units: ``edit_cost`` per tick of ``action``
-    (``int32[..., 4]``), weighted per parameter by ``old.preferences`` (ones by default), plus
-    ``anchor_cost`` times the change of ``pcg.displacement`` from ``old`` to ``new`` (``PCGState``
-    with matching batch shape), plus ``goal_cost`` times the change of the squared distance to the
-    goal. Over an episode the anchor part sums to ``anchor_cost * displacement(final skill)`` and
-    the goal part to ``goal_cost`` times the final minus the start squared distance to the goal.
+    (``int32[..., 4]``), plus ``goal_cost`` times the change of the squared distance to the goal
+    from ``old`` to ``new`` (``PCGState`` with matching batch shape); over an episode the goal part
+    sums to ``goal_cost`` times the final minus the start squared distance to the goal.
     Returns ``float32[...]`` (meaningless on reset transitions, which the learner masks)."""
-    ticks = (jnp.abs(jnp.asarray(pcg.TICK_FRACTIONS)[action]) * old.preferences).sum(-1)
-    moved = pcg.displacement(new.skill, new.start) - pcg.displacement(old.skill, old.start)
-    to_goal = pcg.displacement(new.skill, new.goal) - pcg.displacement(old.skill, old.goal)
-    return config.edit_cost * ticks + config.anchor_cost * moved + config.goal_cost * to_goal
+    ticks = jnp.abs(jnp.asarray(pcg.TICK_FRACTIONS)[action]).sum(-1)
+    to_goal = pcg.squared_ticks(new.skill, new.goal) - pcg.squared_ticks(old.skill, old.goal)
+    return config.edit_cost * ticks + config.goal_cost * to_goal
 
 
-def branch_mask(one_lever: bool, state: pcg.PCGState) -> jax.Array:
-    """``float32[..., 4]``: the branches a policy decides in ``state`` — all four, or with
-    ``one_lever`` only ``state.lever`` (the others are held at ``pcg.NOOP_ACTION``)."""
-    if not one_lever:
-        return jnp.ones(state.lever.shape + (pcg.N_PARAMS,), jnp.float32)
-    return jax.nn.one_hot(state.lever, pcg.N_PARAMS)
-
-
-def masked_action(action: jax.Array, branches: jax.Array) -> jax.Array:
-    """``action`` (``int32[..., 4]``) with the branches outside ``branches`` set to no change."""
-    return jnp.where(branches > 0, action, pcg.NOOP_ACTION).astype(jnp.int32)
-
-
-def _logp_entropy(logits, action, branches):
+def _logp_entropy(logits, action):
+    """Joint log-probability and entropy of the 4 independent branches: ``float32[...]`` each."""
     lp = jax.nn.log_softmax(logits)
-    logp = (jnp.take_along_axis(lp, action[..., None], -1)[..., 0] * branches).sum(-1)
-    ent = (-(jnp.exp(lp) * lp).sum(-1) * branches).sum(-1)
+    logp = jnp.take_along_axis(lp, action[..., None], -1)[..., 0].sum(-1)
+    ent = (-(jnp.exp(lp) * lp).sum(-1)).sum(-1)
     return logp, ent
 
 
-def make_train(config: Config):
+def make_train(config: PPOConfig):
     """Build the learner.
 
     Args:
-        config: ``Config``.
+        config: ``PPOConfig``.
 
     Returns:
         ``train(key, target=None) -> (runner, metrics)`` (jittable, vmappable), with helpers as
         attributes: ``train.init(key, target) -> runner`` and ``train.update(runner, target) ->
         (runner, metrics)`` (one PPO update). ``runner`` is a dict pytree (``params``,
         ``opt_state``, ``env_state``, ``obs``, ``key`` data, ``update``); ``metrics`` holds
-        per-update scalars (leading axis ``n_updates`` in ``train``).
+        per-update scalars (leading axis ``num_updates`` in ``train``).
     """
     net = ActorCritic(tuple(config.hidden))
-    batch = config.n_envs * config.n_steps
+    batch = config.n_arenas * config.n_steps
     mb = batch // config.n_minibatches
 
     def schedule(count):
-        frac = 1.0 - count // (config.n_minibatches * config.update_epochs) / config.n_updates
+        frac = 1.0 - count // (config.n_minibatches * config.update_epochs) / config.num_updates
         return config.lr * (frac if config.anneal_lr else 1.0)
 
     tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(schedule, eps=1e-5))
@@ -217,7 +196,7 @@ def make_train(config: Config):
         p = env_params(config, target)
         k_net, k_env, k_run = jax.random.split(key, 3)
         params = net.init(k_net, jnp.zeros((pcg.obs_size(p),)))
-        obs, env_state = jax.vmap(lambda k: pcg.reset(k, p))(jax.random.split(k_env, config.n_envs))
+        obs, env_state = jax.vmap(lambda k: pcg.reset(k, p))(jax.random.split(k_env, config.n_arenas))
         return {"params": params, "opt_state": tx.init(params), "env_state": env_state, "obs": obs,
                 "key": jax.random.key_data(k_run), "update": jnp.int32(0)}
 
@@ -231,13 +210,12 @@ def make_train(config: Config):
             obs, st = carry
             ka, ke = jax.random.split(k)
             logits, value = net.apply(params, obs)
-            branches = branch_mask(config.one_lever, st)
-            action = masked_action(jax.random.categorical(ka, logits), branches)
-            logp, _ = _logp_entropy(logits, action, branches)
+            action = jax.random.categorical(ka, logits).astype(jnp.int32)
+            logp, _ = _logp_entropy(logits, action)
             obs2, st2, r, done, info = jax.vmap(lambda kk, s, a: pcg.step_autoreset(kk, s, a, p))(
-                jax.random.split(ke, config.n_envs), st, action)
+                jax.random.split(ke, config.n_arenas), st, action)
             shaped = (r - edit_penalty(config, action, st, st2) * info["valid"]) * config.reward_scale
-            tr = Transition(obs, action, branches, logp, value, shaped, done, info["valid"])
+            tr = Transition(obs, action, logp, value, shaped, done, info["valid"])
             ended = done & info["valid"]
             return (obs2, st2), (tr, ended, info["final_error"], info["edits"], info["reached"], r)
 
@@ -249,7 +227,7 @@ def make_train(config: Config):
             adv, v_next = carry
             nonterm = 1.0 - tr.done
             delta = tr.reward + config.gamma * v_next * nonterm - tr.value
-            adv = delta + config.gamma * config.gae_lambda * nonterm * adv
+            adv = delta + config.gamma * config.lam * nonterm * adv
             return (adv, tr.value), adv
 
         _, advs = jax.lax.scan(gae, (jnp.zeros_like(last_v), last_v), trs, reverse=True)
@@ -258,7 +236,7 @@ def make_train(config: Config):
 
         def loss_fn(params, tr, adv, ret):
             logits, v = net.apply(params, tr.obs)
-            logp, ent = _logp_entropy(logits, tr.action, tr.branches)
+            logp, ent = _logp_entropy(logits, tr.action)
             w = tr.valid.astype(jnp.float32)
             wsum = jnp.maximum(w.sum(), 1.0)
             mean = lambda x: (x * w).sum() / wsum
@@ -297,45 +275,31 @@ def make_train(config: Config):
 
     def train(key, target=None):
         runner = init(key, target)
-        return jax.lax.scan(lambda r, _: update(r, target), runner, None, config.n_updates)
+        return jax.lax.scan(lambda r, _: update(r, target), runner, None, config.num_updates)
 
     train.init, train.update, train.net = init, update, net
     return train
 
 
 @cache
-def make_policy(hidden: tuple, greedy: bool = False, temperature: float = 1.0, one_lever: bool = False):
-    """Generator policy ``policy(net_params, key, obs, state, params) -> int32[4]`` for ``pcg_metrics``
-    (cached, so the same hashable function is reused and jit does not recompile).
-
-    ``greedy`` takes the argmax of each branch; otherwise each branch is sampled from
-    ``softmax(logits / temperature)`` (``temperature`` > 0; 1 = the trained policy, above 1 = more
-    random edits; on Benchmark 2 that did not raise diversity, see docs/RESULTS.md). ``one_lever``
-    (a model trained with ``Config.one_lever``) edits only ``state.lever``."""
-    if not temperature > 0:
-        raise ValueError(f"temperature: value {temperature} must be > 0 (use greedy=True for argmax)")
+def make_policy(hidden: tuple, greedy: bool = False):
+    """Generator policy ``policy(net_params, key, obs, state, params) -> int32[4]`` for
+    ``raidjax.pcg.metrics.generate`` (cached, so the same hashable function is reused and jit does
+    not recompile). ``greedy`` takes the argmax of each branch (the paper's generation);
+    otherwise each branch is sampled."""
     net = ActorCritic(tuple(hidden))
 
     def policy(net_params, key, obs, state, params):
         logits, _ = net.apply(net_params, obs)
-        if greedy:
-            action = jnp.argmax(logits, -1)
-        else:
-            action = jax.random.categorical(key, logits / temperature)
-        return masked_action(action, branch_mask(True, state)) if one_lever else action.astype(jnp.int32)
+        action = jnp.argmax(logits, -1) if greedy else jax.random.categorical(key, logits)
+        return action.astype(jnp.int32)
 
     return policy
 
 
-def get_config(preset: str, **overrides: Any) -> Config:
-    """``PRESETS[preset]`` with non-``None`` overrides applied."""
+def get_config(preset: str, **overrides: Any) -> PPOConfig:
+    """``PRESETS[preset]`` with non-``None`` overrides applied; raises ``ValueError`` naming an
+    unknown preset."""
+    if preset not in PRESETS:
+        raise ValueError(f"preset: unknown {preset!r}; known: {sorted(PRESETS)}")
     return dataclasses.replace(PRESETS[preset], **{k: v for k, v in overrides.items() if v is not None})
-
-
-if __name__ == "__main__":
-    from trainers.ppo_pcgrl_cli import main
-
-    try:
-        main()
-    except ValueError as e:
-        raise SystemExit(f"error: {e}") from e

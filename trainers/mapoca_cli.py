@@ -1,4 +1,4 @@
-"""Command line of the MA-POCA trainer (``python -m trainers.mapoca``).
+"""Command line of the MA-POCA trainer (``python -m trainers.mapoca_cli``).
 
 The outer Python loop only runs jitted chunks of ``updates_per_chunk`` updates (all seeds
 vmapped together), prints progress, appends one metrics row per chunk to
@@ -7,13 +7,12 @@ and at the end evaluates the team over ``eval_games`` games next to PT-HR on the
 The last stdout line is one JSON object (``win_rate``, ``heuristic_win_rate``,
 ``env_steps_per_s``, ``seconds``, ...).
 
-    python -m trainers.mapoca --preset cpu --skill-range 13 --total-steps 2000000 --seeds 1 --out runs/r13
+    python -m trainers.mapoca_cli --preset cpu --skill-range 13 --total-steps 2000000 --seeds 1 --out runs/r13
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import sys
 import time
@@ -23,15 +22,16 @@ import jax
 import numpy as np
 
 import raidjax
-from raidjax.utils import fmt_seconds, machine
+from raidjax.utils import atomic_write, fmt_seconds, machine
 from trainers import checkpoint
 from trainers.config import Config, load_config
-from trainers.mapoca import make_trainer, summarize
+from trainers.mapoca import load_policy, make_trainer, summarize
+from trainers.metrics import MetricsLog
 
 
 def parse_args(argv=None) -> argparse.Namespace:
     """CLI arguments (see the module docstring)."""
-    ap = argparse.ArgumentParser(prog="python -m trainers.mapoca", description="Train MA-POCA on raidjax.")
+    ap = argparse.ArgumentParser(prog="python -m trainers.mapoca_cli", description="Train MA-POCA on raidjax.")
     ap.add_argument("--preset", default="cpu", choices=["paper", "cpu"])
     ap.add_argument("--config", help="JSON file of Config fields (applied after the preset)")
     ap.add_argument("--skill-range", type=float, nargs="+", help="range(s) of the players' skill; "
@@ -49,59 +49,12 @@ def parse_args(argv=None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
-def _tensorboard_writer(out: Path):
-    """A ``tensorboardX.SummaryWriter`` on ``DIR/tensorboard``, or ``None`` if not installed."""
-    try:
-        from tensorboardX import SummaryWriter
-    except ImportError:
-        return None
-    return SummaryWriter(str(out / "tensorboard"))
-
-
-class MetricsLog:
-    """Append-only per-chunk rows in JSONL and CSV (rows past ``keep_chunks`` dropped on resume)."""
-
-    def __init__(self, out: Path, keep_chunks: int | None):
-        self.jsonl, self.csv = out / "metrics.jsonl", out / "metrics.csv"
-        rows = []
-        if keep_chunks is not None and self.jsonl.exists():
-            rows = [json.loads(s) for s in self.jsonl.read_text().splitlines() if s.strip()]
-            rows = [r for r in rows if r["chunk"] < keep_chunks]
-        self.jsonl.write_text("".join(json.dumps(r) + "\n" for r in rows))
-        self.fields = list(rows[0]) if rows else None
-        with self.csv.open("w", newline="") as f:
-            if rows:
-                w = csv.DictWriter(f, self.fields)
-                w.writeheader()
-                w.writerows(rows)
-
-        self.tb = _tensorboard_writer(out)
-
-    def write(self, row: dict) -> None:
-        """Append one row to both files (and to TensorBoard when ``tensorboardX`` is installed)."""
-        if self.tb is not None:
-            step = int(row.get("env_steps", row.get("chunk", 0)))
-            for k, v in row.items():
-                if isinstance(v, int | float) and not isinstance(v, bool):
-                    self.tb.add_scalar(k, v, step)
-            self.tb.flush()
-        with self.jsonl.open("a") as f:
-            f.write(json.dumps(row) + "\n")
-        new = self.fields is None
-        self.fields = self.fields or list(row)
-        with self.csv.open("a", newline="") as f:
-            w = csv.DictWriter(f, self.fields, extrasaction="ignore")
-            if new:
-                w.writeheader()
-            w.writerow(row)
-
-
 def evaluate(out: Path, cfg: Config, n_seeds: int, key: jax.Array) -> dict:
     """Win rates of every seed's trained team and of PT-HR over ``cfg.eval_games`` games per
     skill range in ``cfg.skill_ranges`` (same content, same typed PRNG ``key``). Returns a
     JSON-able dict."""
     per_range = {}
-    policies = [checkpoint.load_policy(out, seed=s) for s in range(n_seeds)]  # one compile per seed
+    policies = [load_policy(out, seed=s) for s in range(n_seeds)]  # one compile per seed
     for r in cfg.skill_ranges:
         content = raidjax.make_params(skill_range=r)
         hr = float(raidjax.win_rate(raidjax.playtest(key, content, raidjax.policies.heuristic, cfg.eval_games)))
@@ -130,7 +83,7 @@ def main(argv=None) -> dict:
     if args.resume:
         if checkpoint.latest_step(ckpt_dir) is None:
             raise checkpoint.CheckpointError(f"--resume: no finished checkpoint in {ckpt_dir}")
-        cfg = checkpoint.load_config(ckpt_dir)  # the run's own config: the resumed run must match
+        cfg = Config.from_dict(checkpoint.load_config(ckpt_dir))  # the run's own config: the resumed run must match
         print("resuming with the checkpoint's config (flags other than --out/--eval-games ignored)", flush=True)
         if args.eval_games is not None:
             cfg = cfg.replace(eval_games=args.eval_games)
@@ -146,12 +99,12 @@ def main(argv=None) -> dict:
             raise ValueError(f"--seeds: {args.seeds} given, the checkpoint holds {n_seeds}")
     else:
         runner, start_chunk, seconds_before = init(keys), 0, 0.0
-    (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=1))
+    atomic_write(out / "config.json", json.dumps(cfg.to_dict(), indent=1))
     chunk = jax.jit(jax.vmap(trainer.chunk), donate_argnums=0).lower(runner).compile()
     compile_s = time.perf_counter() - t0
     print(f"compiled in {compile_s:.1f}s; {cfg.num_updates} updates x {cfg.decisions_per_update} decisions "
           f"x {args.seeds} seeds; {machine()}", flush=True)
-    log = MetricsLog(out, keep_chunks=start_chunk)
+    log = MetricsLog(out, resume_update=start_chunk * cfg.updates_per_chunk)
     per_chunk = cfg.updates_per_chunk * cfg.decisions_per_update
     every = max(1, -(-cfg.checkpoint_every // cfg.updates_per_chunk))
     t_loop, done_here = time.perf_counter(), 0
@@ -172,8 +125,9 @@ def main(argv=None) -> dict:
               f"  {sps:,.0f} steps/s  ETA {fmt_seconds(eta)}  return {row['return']:.2f}  win {row['win_rate']:.3f}"
               f"  len {row['length']:.0f}  ent {row['entropy']:.2f}", flush=True)
         if (c + 1) % every == 0 or c + 1 == cfg.num_chunks:
-            checkpoint.save(ckpt_dir, runner, cfg, {"chunk": c + 1, "update": (c + 1) * cfg.updates_per_chunk,
-                                                    "env_steps": steps, "seconds": seconds_before + el})
+            meta = {"chunk": c + 1, "update": (c + 1) * cfg.updates_per_chunk, "env_steps": steps,
+                    "seconds": seconds_before + el}
+            checkpoint.save(ckpt_dir, runner, runner.params["actor"], cfg.to_dict(), meta)
     train_s = time.perf_counter() - t_loop
     result = {"preset": args.preset, "skill_ranges": list(cfg.skill_ranges), "seeds": args.seeds,
               "env_steps": end_chunk * per_chunk,
@@ -184,7 +138,7 @@ def main(argv=None) -> dict:
         result.update(evaluate(out, cfg, args.seeds, jax.random.key(args.seed + 12345)))
         result["eval_seconds"] = time.perf_counter() - t_eval
     result["seconds"] = time.perf_counter() - t_start
-    (out / "result.json").write_text(json.dumps(result, indent=1))
+    atomic_write(out / "result.json", json.dumps(result, indent=1))
     print(json.dumps(result), flush=True)
     return result
 

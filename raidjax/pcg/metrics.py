@@ -1,4 +1,4 @@
-"""Benchmark 2 (SPEC §11): generation runs and the controllability / diversity / yield metrics,
+"""Benchmark 2 (GAME.md §11): generation runs and the controllability / diversity / yield metrics,
 plus the playtest-noise measurement.
 
 ``generate`` runs any generator policy ``policy(policy_params, key, obs, state, params) ->
@@ -19,14 +19,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from raidjax import pcg
+from raidjax.pcg import env
 
 TARGETS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
 
 
 @dataclasses.dataclass(frozen=True)
 class Protocol:
-    """How Benchmark 2 generates, keeps and compares skills (SPEC Revision 2 item 5).
+    """How Benchmark 2 generates, keeps and compares skills (GAME.md §11).
 
     Attributes:
         name: ``PROTOCOLS`` key.
@@ -75,18 +75,18 @@ PROTOCOLS = {
 
 
 @partial(jax.jit, static_argnames=("policy", "episodes", "eval_games"))
-def _generate(key, policy, policy_params, params: pcg.PCGParams, targets, episodes: int, eval_games: int):
+def _generate(key, policy, policy_params, params: env.PCGParams, targets, episodes: int, eval_games: int):
     t = jnp.repeat(targets, episodes)
     n = t.shape[0]
     k_reset, k_loop, k_eval = jax.random.split(key, 3)
-    obs, state = jax.vmap(lambda k, tt: pcg.reset(k, params, tt))(jax.random.split(k_reset, n), t)
+    obs, state = jax.vmap(lambda k, tt: env.reset(k, params, tt))(jax.random.split(k_reset, n), t)
 
     def body(carry):
         i, obs, state = carry
         ks = jax.random.split(jax.random.fold_in(k_loop, i), 2 * n)  # raw or typed keys
         ks = (ks[:n], ks[n:])
         act = jax.vmap(lambda k, o, s: policy(policy_params, k, o, s, params))(ks[0], obs, state)
-        obs2, state2, _, _, _ = jax.vmap(lambda k, s, a: pcg.step(k, s, a, params))(ks[1], state, act)
+        obs2, state2, _, _, _ = jax.vmap(lambda k, s, a: env.step(k, s, a, params))(ks[1], state, act)
         keep = lambda old, new: jnp.where(state.done.reshape((-1,) + (1,) * (new.ndim - 1)), old, new)
         return i + 1, keep(obs, obs2), jax.tree.map(keep, state, state2)
 
@@ -96,15 +96,14 @@ def _generate(key, policy, policy_params, params: pcg.PCGParams, targets, episod
 
     _, _, state = jax.lax.while_loop(cond, body, (jnp.int32(0), obs, state))
     if eval_games:
-        final = jax.vmap(lambda k, s: pcg.measure(k, params, s, eval_games))(jax.random.split(k_eval, n), state.skill)
+        final = jax.vmap(lambda k, s: env.measure(k, params, s, eval_games))(jax.random.split(k_eval, n), state.skill)
     else:  # the generator's own last measurement is the result (no re-measurement)
         final = state.win_rate
     return {"target": t, "skill": state.skill, "win_rate": final, "gen_win_rate": state.win_rate,
-            "edits": state.edits, "reached": state.reached, "start": state.start, "preferences": state.preferences,
-            "goal": state.goal}
+            "edits": state.edits, "reached": state.reached, "goal": state.goal}
 
 
-def generate(key: jax.Array, policy, params: pcg.PCGParams, *, policy_params=None, targets=TARGETS,
+def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=None, targets=TARGETS,
              episodes: int = 10, eval_games: int = 300) -> dict[str, np.ndarray]:
     """Run a generator for ``episodes`` episodes per target, in parallel.
 
@@ -121,10 +120,8 @@ def generate(key: jax.Array, policy, params: pcg.PCGParams, *, policy_params=Non
     Returns:
         numpy dict over ``n = T * E`` episodes: ``target`` [n], ``skill`` [n, 4] (the last measured
         skill), ``win_rate`` [n] (its result, see ``eval_games``), ``gen_win_rate`` [n] (the generator's
-        last measurement), ``edits`` [n], ``reached`` [n] (the band was reached), ``start`` [n, 4]
-        (the episode's random start skill), ``preferences`` [n, 4] (its edit preferences; ones
-        unless ``params.edit_preferences``) and ``goal`` [n, 4] (its style goal; the start unless
-        ``params.observe_goal``).
+        last measurement), ``edits`` [n], ``reached`` [n] (the band was reached) and ``goal`` [n, 4] (its style
+        goal; the start skill unless ``params.goal_axis``).
     """
     out = _generate(key, policy, policy_params, params, jnp.asarray(targets, jnp.float32), episodes, eval_games)
     return {k: np.asarray(v) for k, v in jax.device_get(out).items()}
@@ -157,7 +154,7 @@ def equal_groups(groups: np.ndarray, size: int, seed: int = 1, min_size: int = 1
 
 
 def controllability(gen: dict, min_edits: int = 2, group_size: int | None = None, seed: int = 1) -> dict:
-    """Controllability (SPEC §11) over episodes with at least ``min_edits`` edits.
+    """Controllability (GAME.md §11) over episodes with at least ``min_edits`` edits.
 
     Args:
         gen: ``generate`` output (``target``, ``win_rate``, ``edits`` [n]).
@@ -194,7 +191,7 @@ def first_pc(x: np.ndarray) -> np.ndarray:
 
 def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, threshold: float = 0.1,
               group_size: int | None = None, seed: int = 1) -> dict:
-    """Diversity (SPEC §11): keep skills with error < ``threshold``, optionally cut every group to
+    """Diversity (GAME.md §11): keep skills with error < ``threshold``, optionally cut every group to
     one size, min-max normalise the 4 parameters over the pooled (cut) set, fit PCA on it, then
     per group the SD of each parameter and of PC1.
 
@@ -244,7 +241,7 @@ def yield_stats(gen: dict) -> dict:
 @partial(jax.jit, static_argnames=("n_games", "repeats"))
 def _rates(key, game, skill, n_games: int, repeats: int):
     keys = jax.random.split(key, repeats)
-    return jax.vmap(lambda k: jnp.mean(pcg.play_outcomes(k, game, skill, n_games).astype(jnp.float32)))(keys)
+    return jax.vmap(lambda k: jnp.mean(env.play_outcomes(k, game, skill, n_games).astype(jnp.float32)))(keys)
 
 
 def win_rate_noise(key: jax.Array, skill, n_games_list=(25, 50, 100, 300), repeats: int = 20) -> list[dict]:
@@ -260,11 +257,49 @@ def win_rate_noise(key: jax.Array, skill, n_games_list=(25, 50, 100, 300), repea
         One dict per N: ``n_games``, ``mean`` win rate, ``se_measured`` (SD over repeats) and
         ``se_binomial`` (``sqrt(p (1 - p) / N)`` at the pooled ``p``).
     """
-    game, skill = pcg.base_game(), jnp.asarray(skill, jnp.float32)
+    game, skill = env.base_game(), jnp.asarray(skill, jnp.float32)
     out = []
     for i, n in enumerate(n_games_list):
         r = np.asarray(_rates(jax.random.fold_in(key, i), game, skill, int(n), repeats))
         p = float(r.mean())
         out.append({"n_games": int(n), "mean": p, "se_measured": float(r.std(ddof=1)),
                     "se_binomial": float(np.sqrt(p * (1 - p) / n))})
+    return out
+
+
+def summarize(gens: dict, protocol: Protocol | None = None) -> dict:
+    """Controllability, yield and diversity (pooled normalisation and PCA over all methods) per
+    method, episodes kept and groups cut as ``protocol`` says.
+
+    Args:
+        gens: ``{method: generate output}``.
+        protocol: a ``Protocol`` (default ``PROTOCOLS["raidjax"]``).
+
+    Returns:
+        ``{method: {"controllability": controllability(...), "yield", "edits_mean", "edits_sd",
+        "pc1_sd_mean", "pc1_own_sd_mean", "param_sd_mean": [4] | None, "diversity": {target: ...}}}``
+        (means over targets; NaN where no target has 2 kept skills).
+    """
+    pr = PROTOCOLS["raidjax"] if protocol is None else protocol
+    skills, errs, groups = [], [], []
+    for name, g in gens.items():
+        k = np.asarray(g["edits"]) >= pr.diversity_min_edits
+        skills.append(g["skill"][k])
+        errs.append(np.abs(g["target"] - g["win_rate"])[k])
+        groups += [f"{name}|{t:.1f}" for t in g["target"][k]]
+    div = diversity(np.concatenate(skills), np.concatenate(errs), np.asarray(groups), group_size=pr.group_size,
+                    seed=pr.seed)
+    size = pr.group_size
+    if size is not None:  # one size for every (method, target) group: the smallest, at most group_size
+        counts = [np.unique(np.round(g["target"][np.asarray(g["edits"]) >= pr.min_edits], 6), return_counts=True)[1]
+                  for g in gens.values()]
+        size = int(min([size] + [c.min() for c in counts if c.size]))
+    out = {}
+    for name, g in gens.items():
+        d = [v for k, v in div.items() if k.startswith(name + "|") and np.isfinite(v["pc1_sd"])]
+        out[name] = {"controllability": controllability(g, pr.min_edits, size, pr.seed), **yield_stats(g),
+                     "pc1_sd_mean": float(np.mean([v["pc1_sd"] for v in d])) if d else float("nan"),
+                     "pc1_own_sd_mean": float(np.mean([v["pc1_own_sd"] for v in d])) if d else float("nan"),
+                     "param_sd_mean": np.nanmean([v["param_sd"] for v in d], 0).tolist() if d else None,
+                     "diversity": {k.split("|")[1]: v for k, v in div.items() if k.startswith(name + "|")}}
     return out

@@ -1,0 +1,46 @@
+"""The trainers' shared metrics writer (``trainers.metrics``): resume trimming, torn lines, valid JSON."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+
+from trainers.metrics import MetricsLog, update_rows
+
+
+def _rows(path):
+    return [json.loads(s) for s in path.read_text().splitlines()]
+
+
+def test_resume_keeps_rows_up_to_the_checkpoint_and_drops_a_torn_line(tmp_path):
+    log = MetricsLog(tmp_path, tensorboard=False)
+    for u in (1, 2, 3):
+        log.write({"update": u, "loss": 0.5 * u, "per_group": [u, u]})
+    with (tmp_path / "metrics.jsonl").open("a") as f:
+        f.write('{"update": 4, "lo')  # a run killed mid-write
+    log = MetricsLog(tmp_path, resume_update=2, tensorboard=False)
+    assert [r["update"] for r in _rows(tmp_path / "metrics.jsonl")] == [1, 2]
+    log.write({"update": 3, "loss": 9.0, "per_group": [3, 3]})
+    assert [r["loss"] for r in _rows(tmp_path / "metrics.jsonl")] == [0.5, 1.0, 9.0]
+    with open(tmp_path / "metrics.csv", newline="") as f:
+        table = list(csv.DictReader(f))
+    assert [float(r["loss"]) for r in table] == [0.5, 1.0, 9.0] and "per_group" not in table[0]
+    MetricsLog(tmp_path, tensorboard=False)  # a fresh run (no resume) starts both files empty
+    assert (tmp_path / "metrics.jsonl").read_text() == "" and (tmp_path / "metrics.csv").read_text() == ""
+
+
+def test_nan_is_written_as_json_null(tmp_path):
+    log = MetricsLog(tmp_path, tensorboard=False)
+    log.write({"update": 1, "final_error": float("nan"), "x": [float("inf"), 1.0]})
+    assert _rows(tmp_path / "metrics.jsonl") == [{"update": 1, "final_error": None, "x": [None, 1.0]}]
+
+
+def test_update_rows_average_groups_and_keep_nan_when_no_group_has_a_value():
+    m = {"final_error": np.array([[0.1, np.nan], [0.3, np.nan]]), "reward": np.array([[1.0, 2.0], [3.0, 4.0]])}
+    rows = update_rows(4, m, steps_per_update=10)
+    assert [r["update"] for r in rows] == [5, 6] and [r["env_steps"] for r in rows] == [50, 60]
+    assert abs(rows[0]["final_error"] - 0.2) < 1e-12
+    assert np.isnan(rows[1]["final_error"]) and rows[1]["reward"] == 3.0
+    assert rows[0]["final_error_per_group"] == [0.1, 0.3]

@@ -1,0 +1,117 @@
+"""The metrics writer of both trainers: one row per logged step in ``DIR/metrics.jsonl`` (every
+field) and ``DIR/metrics.csv`` (the scalar fields), optionally mirrored to TensorBoard.
+
+On resume, rows past the checkpoint are dropped first, so a resumed run's log reads as if it had
+never stopped. Both files are rewritten atomically when trimmed and appended one whole row at a
+time afterwards.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from raidjax.utils import atomic_write
+
+
+def _scalar(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+def _json_value(v):
+    """NaN and infinities as ``null``: bare ``NaN`` is not JSON for most parsers."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, list):
+        return [_json_value(x) for x in v]
+    return v
+
+
+def _tensorboard_writer(out: Path):
+    """A ``tensorboardX.SummaryWriter`` on ``DIR/tensorboard``, or ``None`` if it is not installed."""
+    try:
+        from tensorboardX import SummaryWriter
+    except ImportError:
+        return None
+    return SummaryWriter(str(out / "tensorboard"))
+
+
+class MetricsLog:
+    """Rows keyed by ``update`` (an int that grows with every row).
+
+    Args:
+        out: the run folder.
+        resume_update: keep the rows with ``update <= resume_update`` from an earlier run (the
+            update of the checkpoint resumed from); ``None`` starts both files empty.
+        tensorboard: also write the scalar fields to ``DIR/tensorboard`` when ``tensorboardX`` is
+            installed.
+    """
+
+    def __init__(self, out: str | Path, resume_update: int | None = None, tensorboard: bool = True):
+        out = Path(out)
+        self.jsonl, self.csv = out / "metrics.jsonl", out / "metrics.csv"
+        rows = []
+        if resume_update is not None and self.jsonl.exists():
+            for line in self.jsonl.read_text().splitlines():
+                try:
+                    row = json.loads(line)
+                except json.JSONDecodeError:  # a torn last line from a killed run
+                    continue
+                if row.get("update", math.inf) <= resume_update:
+                    rows.append(row)
+        self.fields = [k for k, v in rows[0].items() if _scalar(v) or v is None] if rows else None
+        atomic_write(self.jsonl, "".join(json.dumps(r) + "\n" for r in rows))
+        atomic_write(self.csv, self._csv_text(rows, header=bool(rows)))
+        self.tb = _tensorboard_writer(out) if tensorboard else None
+
+    def _csv_text(self, rows: list[dict], header: bool) -> str:
+        buf = io.StringIO()
+        if self.fields:
+            w = csv.DictWriter(buf, self.fields, extrasaction="ignore")
+            if header:
+                w.writeheader()
+            w.writerows(rows)
+        return buf.getvalue()
+
+    def write(self, row: dict) -> None:
+        """Append one row (a dict with an ``update`` key) to both files, and to TensorBoard."""
+        row = {k: _json_value(v) for k, v in row.items()}
+        if self.tb is not None:
+            step = int(row.get("env_steps", row["update"]))
+            for k, v in row.items():
+                if _scalar(v):
+                    self.tb.add_scalar(k, v, step)
+            self.tb.flush()
+        with self.jsonl.open("a") as f:
+            f.write(json.dumps(row) + "\n")
+        new = self.fields is None
+        if new:
+            self.fields = [k for k, v in row.items() if _scalar(v) or v is None]
+        with self.csv.open("a", newline="") as f:
+            f.write(self._csv_text([row], header=new))
+
+
+def update_rows(start_update: int, metrics: dict, steps_per_update: int) -> list[dict]:
+    """One row per update of a chunk of grouped metrics (PPO-PCGRL): ``update``, ``env_steps`` and
+    every metric averaged over the groups (NaN when no group has a finite value), plus
+    ``final_error_per_group`` (list of G floats).
+
+    Args:
+        start_update: updates done before the chunk.
+        metrics: chunk metrics, host arrays ``[G, n]`` (groups x updates).
+        steps_per_update: generator steps per update and group.
+    """
+    n = next(iter(metrics.values())).shape[1]
+    rows = []
+    for i in range(n):
+        u = start_update + i + 1
+        row = {k: float(np.nanmean(v[:, i])) if np.isfinite(v[:, i]).any() else float("nan")
+               for k, v in sorted(metrics.items())}
+        rows.append({"update": u, "env_steps": u * steps_per_update, **row,
+                     "final_error_per_group": [float(x) for x in metrics["final_error"][:, i]]})
+    return rows

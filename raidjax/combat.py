@@ -10,14 +10,16 @@ import jax
 import jax.numpy as jnp
 
 from raidjax import collide
-from raidjax.movement import HALF_ARENA, TICK, heading_vec, nearest_alive_player
+from raidjax.movement import heading_vec, nearest_alive_player
 from raidjax.types import (
+    HALF_ARENA,
     HIT_ATTACK,
     PROJ_AREA,
     PROJ_HOMING,
     PROJ_STRAIGHT,
     TARGET_REGION,
     TARGET_UNIT,
+    TICK,
     TRIGGER_PASSIVE,
     Params,
     Projectiles,

@@ -15,15 +15,17 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax import combat, movement
+from raidjax import combat, heuristic, movement
 from raidjax.observation import observe
 from raidjax.types import (
-    ACTION_HEURISTIC,
-    CAST_1,
+    DAMAGE_REWARD,
     DRAW,
     LOSS,
     RUNNING,
+    TICK,
+    TICKS_PER_DECISION,
     WIN,
+    WIN_REWARD,
     Observation,
     Params,
     Projectiles,
@@ -32,9 +34,6 @@ from raidjax.types import (
 
 PLAYER_SPAWN_Y, PLAYER_SPACING = -10.0, 3.0
 BOSS_SPAWN = (0.0, 8.0)
-TICKS_PER_DECISION = 5  # the reference's decision period: 5 ticks of 0.02 s
-DAMAGE_REWARD = 0.01
-WIN_REWARD = 1.0
 
 
 def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
@@ -88,13 +87,6 @@ def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
     return observe(state, params), state
 
 
-def _cast_requests(actions: jnp.ndarray, s_n: int) -> jnp.ndarray:
-    """``bool[U, S]`` requested casts: a learner's cast action, PT-HR all slots, the boss all slots."""
-    slot = jnp.arange(s_n)
-    req = (actions[:, None] == CAST_1 + slot[None]) | (actions[:, None] == ACTION_HEURISTIC)
-    return jnp.concatenate([req, jnp.ones((1, s_n), bool)])
-
-
 def _boss_still_ticks(state: State, params: Params, n_ticks: int) -> jnp.ndarray:
     """``int32[]``: ticks of this sub-step at whose start the boss is still casting a cast in progress."""
     b = state.pos.shape[0] - 1
@@ -124,15 +116,15 @@ def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Par
 
 def _substep(key, state: State, actions, params: Params, table, n_ticks: int):
     """Advance one arena by ``n_ticks`` 0.02 s ticks. Returns ``(state, to_boss: f32[U], back: i32[U])``."""
-    dt = n_ticks * movement.TICK
+    dt = n_ticks * TICK
     old_pos = state.pos
     state = movement.move_players(state, actions, params, dt)
     still = _boss_still_ticks(state, params, n_ticks)
-    state = movement.move_boss(state, params, dt, (n_ticks - still) * movement.TICK)
+    state = movement.move_boss(state, params, dt, (n_ticks - still) * TICK)
     state = movement.clamp_to_walls(state, params)
     state = movement.update_moving(state, old_pos, dt)
     before = state
-    state = combat.start_casts(state, params, _cast_requests(actions, state.casting.shape[1]))
+    state = combat.start_casts(state, params, heuristic.cast_requests(actions, state.casting.shape[1]))
     state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
     state, fired_tick = combat.advance_casts(state, params, n_ticks)
     state, inst_hits, inst_from, flight = combat.fire(state, params, fired_tick, n_ticks)

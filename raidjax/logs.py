@@ -13,8 +13,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from raidjax.env import reset, step
-from raidjax.movement import HALF_ARENA
-from raidjax.types import RUNNING, Params, State
+from raidjax.types import HALF_ARENA, RUNNING, Params, State
 
 HEATMAP_BINS = 24
 

@@ -1,4 +1,5 @@
-"""Movement of units within one sub-step: player actions, the scripted heuristic, the boss's chase.
+"""Movement of units within one sub-step: player actions (PT-HR's scripted moves come from
+``raidjax.heuristic``), the boss's chase.
 
 All functions act on one arena (unbatched); ``U`` units, the boss last.
 """
@@ -7,29 +8,27 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
+from raidjax import heuristic
 from raidjax.types import (
     ACTION_HEURISTIC,
     BACKWARD,
     FORWARD,
+    HALF_ARENA,
     ROTATE_LEFT,
     ROTATE_RIGHT,
     STRAFE_LEFT,
     STRAFE_RIGHT,
+    TICK,
     Params,
     State,
 )
 from raidjax.utils import pick
 
-TICK = 0.02  # physics tick of the reference build (s)
-HALF_ARENA = 12.25  # walls at x, y = +-HALF_ARENA
 DRAG = 0.92  # velocity factor per tick
 TURN_RATE = jnp.deg2rad(200.0)  # rad/s
 STRAFE_FACTOR = 0.75
 BOSS_STOP_DISTANCE = 1.6  # the boss stops chasing this close to its target
 MOVING_SPEED = 0.5  # a unit displaced faster than this (units/s) counts as moving
-HEURISTIC_SPEED = 5.0  # PT-HR moves at 5 x move speed units/s
-HEURISTIC_EASE_PER_TICK = 0.02  # PT-HR closes 2 % of the gap to its circling spot per tick
-HEURISTIC_DEFAULT_DISTANCE = 10.0
 
 
 def heading_vec(angle: jnp.ndarray) -> jnp.ndarray:
@@ -77,27 +76,7 @@ def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) 
     learner_pos = pos + c0 * vel + ca * thrust
     learner_vel = dn * vel + s * thrust
 
-    # Scripted heuristic (PT-HR), as the reference build runs it (docs/GAME.md): approach at
-    # 5 x move speed to the preferred distance R; inside R, ease towards a point on the circle of
-    # radius R around the boss that turns at move-speed rad/s (one phase shared by the team, so
-    # players circling the same way clump, as in the reference), while retreating at 5 x move
-    # speed. It stands still while casting.
-    boss = state.pos[-1]
-    to_boss = boss - pos
-    dist = jnp.linalg.norm(to_boss, axis=-1)
-    unit = to_boss / jnp.maximum(dist, 1e-6)[:, None]
-    preferred = heuristic_distance(state, params)[:n_players]
-    step = HEURISTIC_SPEED * speed * dt
-    theta = speed * state.clock
-    cw = jnp.stack([jnp.cos(theta), jnp.sin(theta)], axis=-1)
-    ccw = jnp.stack([jnp.sin(theta), jnp.cos(theta)], axis=-1)
-    spot = boss - preferred[:, None] * jnp.where(state.orbit_sign[:n_players, None] > 0, cw, ccw)
-    ease = 1.0 - (1.0 - HEURISTIC_EASE_PER_TICK) ** n_ticks
-    orbit_pos = pos + ease * (spot - pos) - step[:, None] * unit
-    approach_pos = pos + unit * jnp.minimum(step, dist - preferred)[:, None]
-    h_pos = jnp.where((dist > preferred)[:, None], approach_pos, orbit_pos)
-    h_pos = jnp.where(jnp.any(state.casting[:n_players], axis=-1)[:, None], pos, h_pos)
-    h_heading = jnp.arctan2(boss[1] - h_pos[:, 1], boss[0] - h_pos[:, 0])
+    h_pos, h_heading = heuristic.scripted_moves(state, params, n_players, dt)
 
     scripted = actions == ACTION_HEURISTIC
     new_pos = jnp.where(scripted[:, None], h_pos, learner_pos)
@@ -112,13 +91,6 @@ def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) 
         vel=state.vel.at[:n_players].set(new_vel),
         heading=state.heading.at[:n_players].set(new_heading),
     )
-
-
-def heuristic_distance(state: State, params: Params) -> jnp.ndarray:
-    """PT-HR's preferred distance ``float32[U]``: the largest range of a charged skill in use (10 if none)."""
-    ready = (params.skills.in_use > 0) & (state.charges > 0)
-    best = jnp.max(jnp.where(ready, params.skills.range, -1.0), axis=-1)
-    return jnp.where(best > 0, best, HEURISTIC_DEFAULT_DISTANCE)
 
 
 def nearest_alive_player(state: State) -> jnp.ndarray:

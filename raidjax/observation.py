@@ -10,8 +10,7 @@ import jax
 import jax.numpy as jnp
 
 from raidjax.combat import F_SPEED, F_TEAM, effect_table, haste_factor, skill_targets, source_index, usable_slot
-from raidjax.movement import HALF_ARENA
-from raidjax.types import CAST_1, HIT_ATTACK, TRIGGER_PASSIVE, Observation, Params, State
+from raidjax.types import CAST_1, HALF_ARENA, HIT_ATTACK, TRIGGER_PASSIVE, Observation, Params, State
 from raidjax.utils import pick
 
 POS_SCALE, COOL_SCALE, RANGE_SCALE, DAMAGE_SCALE, CAST_SCALE = 20.0, 5.0, 20.0, 100.0, 5.0

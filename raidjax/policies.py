@@ -34,8 +34,8 @@ def random(key: jax.Array, obs: Observation, state: State, params: Params) -> ja
 
 def heuristic(key: jax.Array, obs: Observation, state: State, params: Params) -> jax.Array:
     """PT-HR (the paper's Algorithm 1 as the reference build runs it), carried out by the
-    simulator's built-in script: approach to the preferred distance, circle the boss in the
-    per-episode direction, face it, cast every usable skill.
+    simulator's built-in script (``raidjax.heuristic``): approach to the preferred distance,
+    circle the boss in the per-episode direction, face it, cast every usable skill.
 
     Returns:
         ``int32[P]`` filled with ``ACTION_HEURISTIC``.

@@ -18,8 +18,7 @@ import jax
 import numpy as np
 from PIL import Image, ImageDraw
 
-from raidjax.movement import HALF_ARENA
-from raidjax.types import PROJ_AREA, Params
+from raidjax.types import HALF_ARENA, PROJ_AREA, Params
 from raidjax.utils import atomic_write
 
 PLAYER_COLOURS = [(66, 135, 245), (46, 204, 113), (241, 196, 15), (155, 89, 182), (230, 126, 34)]

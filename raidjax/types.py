@@ -11,6 +11,13 @@ from __future__ import annotations
 import jax
 from flax import struct
 
+# The game's constants (GAME.md §1, §8).
+TICK = 0.02  # physics tick of the reference build (s)
+TICKS_PER_DECISION = 5  # the reference's decision period: 5 ticks of 0.02 s
+HALF_ARENA = 12.25  # walls at x, y = +-HALF_ARENA
+DAMAGE_REWARD = 0.01  # reward per point of damage a player's hits deal to the boss
+WIN_REWARD = 1.0  # reward to every player when the boss dies
+
 N_SLOTS = 3  # skill slots per unit
 # Discrete actions of a player (GAME.md §4). Casting slot k is action 7 + k.
 NOOP, FORWARD, BACKWARD, ROTATE_LEFT, ROTATE_RIGHT, STRAFE_LEFT, STRAFE_RIGHT = range(7)

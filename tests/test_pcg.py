@@ -187,7 +187,7 @@ def test_pc1_on_the_pooled_axis_and_on_each_groups_own_axis():
 @pytest.mark.parametrize("pool,goal", [(False, 0.0), (True, 0.5)])
 def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, goal):
     from trainers import checkpoint
-    from trainers.ppo_pcgrl import PPOConfig, make_policy, make_train
+    from trainers.ppo_pcgrl import PPOConfig, make_generator_policy, make_train
 
     cfg = PPOConfig(n_arenas=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=(8,), n_games=2,
                     max_edits=2, pool_repeats=pool, edit_cost=1.0, goal_cost=goal,
@@ -203,7 +203,7 @@ def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, goal):
     for a, b in zip(jax.tree.leaves(runner), jax.tree.leaves(back), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     weights, _ = checkpoint.load_policy_weights(tmp_path)
-    policy = make_policy((8,), True)
+    policy = make_generator_policy((8,), True)
     obs = pcg.observe_pcg(_state(), pcg.make_pcg_params(n_games=2, pool_repeats=pool,
                                                         goal_axis=cfg.goal_axis))
     assert obs.shape == (6 + pool + 4 * (goal > 0),)

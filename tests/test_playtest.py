@@ -16,8 +16,7 @@ from helpers import ACTION_HEURISTIC, RESET
 
 import raidjax
 from raidjax import policies
-from raidjax.movement import HALF_ARENA
-from raidjax.types import EnvConfig
+from raidjax.types import HALF_ARENA, EnvConfig
 
 N = 4
 SHORT = EnvConfig(max_decisions=200)

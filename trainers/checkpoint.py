@@ -102,7 +102,7 @@ def restore(path: str | Path, abstract_state) -> tuple[object, dict, dict]:
     return out.state, dict(out.config), dict(out.meta)
 
 
-def load_config(path: str | Path) -> dict:
+def saved_config(path: str | Path) -> dict:
     """The config dict stored with the latest (or the given) checkpoint."""
     directory, step = _resolve(path)
     return dict(_restore(directory, step, config=ocp.args.JsonRestore()).config)

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg
-from trainers.ppo_pcgrl import PPOConfig, env_params, make_policy
+from trainers.ppo_pcgrl import PPOConfig, env_params, make_generator_policy
 
 
 def target_groups(config: PPOConfig, seeds: int) -> tuple[np.ndarray, list[tuple[float | None, int]]]:
@@ -36,10 +36,10 @@ def target_groups(config: PPOConfig, seeds: int) -> tuple[np.ndarray, list[tuple
 def method_policy(hidden: tuple, greedy: bool = False):
     """One generator policy for PPO, PCG-HR and PCG-RD, so that ``pcg.metrics.generate`` compiles
     once per episode count rather than once per method: ``policy({"net": weights, "method":
-    int32[]}, key, obs, state, params) -> int32[4]`` with method 0 = PPO (``make_policy(hidden,
+    int32[]}, key, obs, state, params) -> int32[4]`` with method 0 = PPO (``make_generator_policy(hidden,
     greedy)``), 1 = PCG-HR, 2 = PCG-RD. ``method`` is not batched, so the ``lax.switch`` stays a
     conditional and only the chosen branch runs."""
-    ppo = make_policy(tuple(hidden), greedy)
+    ppo = make_generator_policy(tuple(hidden), greedy)
 
     def policy(pp, key, obs, state, params):
         return jax.lax.switch(pp["method"], [

@@ -38,8 +38,7 @@ from flax import struct
 
 import raidjax
 from raidjax.content import with_player_skill
-from raidjax.env import DAMAGE_REWARD, WIN_REWARD
-from raidjax.types import WIN, Observation, Params, State
+from raidjax.types import DAMAGE_REWARD, WIN, WIN_REWARD, Observation, Params, State
 from trainers import checkpoint
 from trainers.config import Config
 from trainers.networks import Actor, Critic, sample_actions
@@ -378,7 +377,7 @@ def summarize(m: dict) -> dict:
     return out
 
 
-def make_policy(actor: Actor, actor_params, deterministic: bool = False):
+def team_policy(actor: Actor, actor_params, deterministic: bool = False):
     """A pure ``policy(key, obs, state, params) -> int32[P]`` for one arena (``raidjax.playtest``
     compatible; the weights are baked in as constants, the function is hashable by identity)."""
 
@@ -409,4 +408,4 @@ def load_policy(path: str | Path, seed: int = 0, deterministic: bool | None = No
         raise checkpoint.CheckpointError(f"seed: {seed} not in the checkpoint's {n_seeds} seeds")
     weights = jax.tree.map(lambda x: jnp.asarray(x[seed]), weights)
     actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention)
-    return make_policy(actor, weights, cfg.deterministic_eval if deterministic is None else deterministic)
+    return team_policy(actor, weights, cfg.deterministic_eval if deterministic is None else deterministic)

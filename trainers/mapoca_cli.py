@@ -83,7 +83,7 @@ def main(argv=None) -> dict:
     if args.resume:
         if checkpoint.latest_step(ckpt_dir) is None:
             raise checkpoint.CheckpointError(f"--resume: no finished checkpoint in {ckpt_dir}")
-        cfg = Config.from_dict(checkpoint.load_config(ckpt_dir))  # the run's own config: the resumed run must match
+        cfg = Config.from_dict(checkpoint.saved_config(ckpt_dir))  # the run's own config: the resumed run must match
         print("resuming with the checkpoint's config (flags other than --out/--eval-games ignored)", flush=True)
         if args.eval_games is not None:
             cfg = cfg.replace(eval_games=args.eval_games)

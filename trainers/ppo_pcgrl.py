@@ -282,7 +282,7 @@ def make_train(config: PPOConfig):
 
 
 @cache
-def make_policy(hidden: tuple, greedy: bool = False):
+def make_generator_policy(hidden: tuple, greedy: bool = False):
     """Generator policy ``policy(net_params, key, obs, state, params) -> int32[4]`` for
     ``raidjax.pcg.metrics.generate`` (cached, so the same hashable function is reused and jit does
     not recompile). ``greedy`` takes the argmax of each branch (the paper's generation);

@@ -128,7 +128,7 @@ def _parse(argv=None) -> argparse.Namespace:
                     "default: the scale's, 0 = the paper's reward)")
     ap.add_argument("--goal-cost", type=float, help="with --goal-axis: PPO learner penalty per squared tick of "
                     "distance to the episode's style goal (default 0 = off)")
-    ap.add_argument("--goal-axis", type=str, help="a style goal per episode at one end of this axis, 4 "
+    ap.add_argument("--goal-axis", type=pcg.axis_arg, help="a style goal per episode at one end of this axis, 4 "
                     "comma-separated signs in {-1,0,1} for range,cool_time,cast_time,coefficient (1,1,1,1 = heavy "
                     "vs light skills)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
@@ -138,13 +138,7 @@ def _parse(argv=None) -> argparse.Namespace:
     ap.add_argument("--pool-repeats", action="store_true",
                     help="generation env: re-measuring an unchanged skill pools its games (all three "
                     "generators, training and generation)")
-    args = ap.parse_args(argv)
-    if args.goal_axis is not None:
-        try:
-            args.goal_axis = pcg.parse_axis(args.goal_axis)
-        except ValueError as err:
-            ap.error(f"--goal-axis: {err}")
-    return args
+    return ap.parse_args(argv)
 
 
 class _Learner:

@@ -98,11 +98,17 @@ class Config:
     @classmethod
     def from_dict(cls, d: dict) -> Config:
         """Inverse of ``to_dict``; raises ``ValueError`` naming unknown keys."""
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"config: unknown keys {unknown}; known: {sorted(known)}")
-        return cls().replace(**d)
+        return cls().replace(**known_fields(cls, d))
+
+
+def known_fields(cls, d: dict) -> dict:
+    """``d`` unchanged if every key is a field of the dataclass ``cls``; else ``ValueError``
+    naming the unknown keys and the known ones (both trainers' ``from_dict``)."""
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(d) - known)
+    if unknown:
+        raise ValueError(f"config: unknown keys {unknown}; known: {sorted(known)}")
+    return d
 
 
 def from_agent_steps(buffer: int, batch: int, horizon: int, players: int = 3) -> tuple[int, int]:

@@ -20,6 +20,7 @@ import numpy as np
 import optax
 
 from raidjax import pcg
+from trainers.config import known_fields
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,11 +93,7 @@ class PPOConfig:
     @classmethod
     def from_dict(cls, d: dict) -> PPOConfig:
         """Inverse of ``to_dict`` (JSON lists become tuples); raises ``ValueError`` naming unknown keys."""
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"config: unknown keys {unknown}; known: {sorted(known)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in known_fields(cls, d).items()})
 
 
 PRESETS = {

@@ -44,7 +44,7 @@ def _args(argv=None):
     ap.add_argument("--edit-cost", type=float, help="learner penalty per tick moved")
     ap.add_argument("--goal-cost", type=float,
                     help="with --goal-axis: learner penalty per squared tick of distance to the episode's style goal")
-    ap.add_argument("--goal-axis", type=str,
+    ap.add_argument("--goal-axis", type=pcg.axis_arg,
                     help="style goals at the two ends of this axis, 4 comma-separated signs in {-1,0,1} for "
                          "range,cool_time,cast_time,coefficient (1,1,1,1 = heavy vs light)")
     ap.add_argument("--ent-coef", type=float, help="entropy bonus coefficient")
@@ -56,13 +56,7 @@ def _args(argv=None):
     ap.add_argument("--eval-games", type=int, default=300, help="games measuring each final skill")
     ap.add_argument("--greedy", action="store_true", help="argmax actions in evaluation")
     ap.add_argument("--no-baselines", action="store_true")
-    args = ap.parse_args(argv)
-    if args.goal_axis is not None:
-        try:
-            args.goal_axis = pcg.parse_axis(args.goal_axis)
-        except ValueError as err:
-            ap.error(f"--goal-axis: {err}")
-    return args
+    return ap.parse_args(argv)
 
 
 def main(argv=None) -> None:

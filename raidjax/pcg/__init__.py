@@ -24,6 +24,7 @@ from raidjax.pcg.env import (
     PCGState,
     advance,
     apply_action,
+    axis_arg,
     base_game,
     check_axis,
     draw_goal,
@@ -47,7 +48,8 @@ from raidjax.pcg.env import (
 
 __all__ = [
     "EASIER", "HEAVY_VS_LIGHT", "HIGH", "LOW", "N_CHOICES", "N_PARAMS", "NOOP_ACTION", "PARAM_NAMES",
-    "TICK_FRACTIONS", "PCGParams", "PCGState", "advance", "apply_action", "base_game", "check_axis", "draw_goal",
+    "TICK_FRACTIONS", "PCGParams", "PCGState", "advance", "apply_action", "axis_arg", "base_game", "check_axis",
+    "draw_goal",
     "heuristic_policy", "high", "in_band", "low", "make_pcg_params", "measure", "metrics", "obs_size",
     "observe_pcg", "parse_axis", "play_outcomes", "random_policy", "reset", "reward_fn", "skill_params",
     "squared_ticks", "step", "step_autoreset", "tick",

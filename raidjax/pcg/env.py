@@ -28,6 +28,8 @@ its own batch of ``n_games`` playtests.
 
 from __future__ import annotations
 
+import argparse
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -160,6 +162,15 @@ def parse_axis(text: str) -> tuple[int, ...]:
         raise ValueError(f"goal_axis: value {text!r} must be {N_PARAMS} comma-separated signs, each -1, 0 or 1 "
                          f"(for {','.join(PARAM_NAMES)})") from None
     return check_axis(signs)
+
+
+def axis_arg(text: str) -> tuple[int, ...]:
+    """``parse_axis`` as an argparse ``type`` (``--goal-axis 1,1,1,1``): bad input becomes a usage
+    error naming the flag, the value and what is allowed."""
+    try:
+        return parse_axis(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def make_pcg_params(

@@ -96,3 +96,25 @@ SNIPPETS = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), 
 def test_readme_python_snippets_run(code):
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
+
+
+def _commands(text: str) -> dict[str, set[str]]:
+    """``{module: flags}`` of every ``python -m module ...`` command line in ``text``."""
+    out: dict[str, set[str]] = {}
+    for module, rest in re.findall(r"python -m ((?:raidjax|trainers|experiments)\.[\w.]+)([^`\n|]*)", text):
+        out.setdefault(module, set()).update(re.findall(r"--[a-z][\w-]*", rest))
+    return out
+
+
+DOC_COMMANDS = _commands((ROOT / "README.md").read_text() + (ROOT / "docs" / "RESULTS.md").read_text())
+
+
+@pytest.mark.parametrize("module", sorted(DOC_COMMANDS))
+def test_documented_commands_exist_with_their_flags(module):
+    """Each documented command's module runs ``--help``, and every flag the docs give it is one of its
+    flags (a dry run that does not train or play)."""
+    out = subprocess.run([sys.executable, "-m", module, "--help"], cwd=ROOT, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    missing = sorted(f for f in DOC_COMMANDS[module] if f not in out.stdout)
+    assert not missing, f"{module} has no flag {missing}"

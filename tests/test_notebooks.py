@@ -52,13 +52,16 @@ def has_image(nb, mime: str) -> bool:
     return any(mime in out.get("data", {}) for c in nb.cells for out in c.get("outputs", []))
 
 
-def test_notebooks_committed_without_outputs():
+def test_notebooks_committed_with_full_size_outputs():
+    """The stored notebooks read on a code host: every code cell ran, in order, without an error,
+    at full size (not the smoke sizes the tests below use)."""
     for path in sorted(NOTEBOOKS.glob("*.ipynb")):
         nb = nbformat.read(path, as_version=4)
         nbformat.validate(nb)
-        for cell in nb.cells:
-            if cell.cell_type == "code":
-                assert not cell.outputs and cell.execution_count is None, f"{path.name}: clear the outputs"
+        code = [c for c in nb.cells if c.cell_type == "code"]
+        assert [c.execution_count for c in code] == list(range(1, len(code) + 1)), f"{path.name}: run all cells"
+        assert not any(o.output_type == "error" for c in code for o in c.outputs), f"{path.name}: an error is stored"
+        assert "smoke=True" not in output_text(nb), f"{path.name}: stored at smoke size"
 
 
 def test_quickstart(monkeypatch):

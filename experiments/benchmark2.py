@@ -97,9 +97,10 @@ SCALES = {
                                           hidden=(16, 16), n_games=8, max_edits=6),
                    seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=16, decisions=4,
                    fast_compile=True),
-    # ~20 min on 2 shared CPU cores: the cpu preset (one model for all targets, target observed; N = 50
-    # games per training measurement, 20 480 steps as in docs/RESULTS.md), 12 episodes per target and
-    # method with 100-game generator measurements and the 300-game final measurement of GAME.md §11.
+    # About 8 M PT-HR games under the reference rules, a GPU job (docs/RESULTS.md): the cpu preset (one
+    # model for all targets, target observed; N = 50 games per training measurement, 20 480 steps), 12
+    # episodes per target and method with 100-game generator measurements (raidjax protocol) or 300-game
+    # ones (paper protocol), and the 300-game final measurement of GAME.md §11.
     "cpu": Scale(preset="cpu", ppo=dict(total_steps=20480), seeds=1, chunk=5, episodes=12, parts=6,
                  gen_games=100, eval_games=300),
     # The paper's budgets: one model per fixed (unobserved) target, 5 seeds, 20 000 steps, N = 100

@@ -1,19 +1,34 @@
-"""Checkpoints of both trainers (orbax-checkpoint): save, restore, the latest step.
+"""Checkpoints of both trainers (orbax-checkpoint): save, restore with an integrity check and a
+fallback to the newest intact checkpoint, the latest step.
 
 A run folder ``DIR`` holds ``DIR/checkpoints/<update>/`` with four items: ``state`` (the whole
 training state of every seed: weights, optimiser, environments, PRNG key), ``policy`` (the
 policy's weights alone, leading seed axis), ``config`` (the trainer's config as a dict) and
-``meta`` (update, chunk, decisions, seconds). Orbax writes each checkpoint into a temporary
-directory and renames it when complete, so an interrupted save never shows up as a checkpoint.
+``meta`` (update, chunk, decisions, seconds, and the SHA-256 ``digest`` of ``state`` and
+``policy``), plus ``files.json``, the size and SHA-256 of every file of the checkpoint. Orbax
+writes each checkpoint into a temporary directory and renames it when complete, so an
+interrupted save never shows up as a checkpoint; the two digests catch what the rename cannot
+(bytes changed or lost on disk afterwards): the file list before orbax reads anything, the
+pytree digest after it did. A checkpoint that fails either check or does not load is named in a
+one-line warning and the next older one is tried; resuming trainers move the rejected ones aside
+to ``DIR/checkpoints_rejected/`` (nothing is deleted).
 Loading a trained policy is each algorithm's (``trainers.mapoca.load_policy``), on top of
 ``load_policy_weights``.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
+import shutil
+import sys
 from pathlib import Path
 
+import jax
+import numpy as np
 import orbax.checkpoint as ocp
+
+from raidjax.utils import atomic_write
 
 
 class CheckpointError(RuntimeError):
@@ -26,8 +41,21 @@ def _manager(directory: Path, max_to_keep: int | None = 3, create: bool = True) 
                                  item_names=("state", "policy", "config", "meta"))
 
 
+def digest(tree) -> str:
+    """SHA-256 (hex) of a pytree's leaves: dtype, shape and bytes, in flattening order (typed PRNG
+    keys by their key data). Equal trees give equal digests on any host."""
+    h = hashlib.sha256()
+    for leaf in jax.tree.leaves(tree):
+        if jax.dtypes.issubdtype(getattr(leaf, "dtype", None), jax.dtypes.prng_key):
+            leaf = jax.random.key_data(leaf)
+        a = np.ascontiguousarray(jax.device_get(leaf))
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
 def save(directory: str | Path, state, policy, config: dict, meta: dict, max_to_keep: int = 3) -> Path:
-    """Write a checkpoint at step ``meta['update']``.
+    """Write a checkpoint at step ``meta['update']``, with the digests of ``state`` and ``policy``.
 
     Args:
         directory: the checkpoints folder (``DIR/checkpoints``).
@@ -42,6 +70,7 @@ def save(directory: str | Path, state, policy, config: dict, meta: dict, max_to_
     """
     directory = Path(directory)
     step = int(meta["update"])
+    meta = {**meta, "digest": {"state": digest(state), "policy": digest(policy)}}
     with _manager(directory, max_to_keep) as mngr:
         mngr.save(step, args=ocp.args.Composite(
             state=ocp.args.StandardSave(state),
@@ -50,67 +79,148 @@ def save(directory: str | Path, state, policy, config: dict, meta: dict, max_to_
             meta=ocp.args.JsonSave(meta),
         ), force=True)
         mngr.wait_until_finished()
-    return directory / str(step)
+    step_dir = directory / str(step)
+    atomic_write(step_dir / FILES, json.dumps(_file_digests(step_dir), indent=0))
+    return step_dir
 
 
-def _resolve(path: str | Path) -> tuple[Path, int]:
-    """``(checkpoints dir, step)`` from a run dir, its ``checkpoints`` dir or one step dir."""
+FILES = "files.json"  # the file list of a checkpoint, beside orbax's own files
+
+
+def _file_digests(step_dir: Path) -> dict[str, list]:
+    """``relative path -> [size, sha256]`` of every file of a checkpoint but ``files.json``."""
+    out = {}
+    for f in sorted(step_dir.rglob("*")):
+        if f.is_file() and f.name != FILES:
+            out[str(f.relative_to(step_dir))] = [f.stat().st_size, hashlib.sha256(f.read_bytes()).hexdigest()]
+    return out
+
+
+def _check_files(step_dir: Path) -> None:
+    """Compare a checkpoint's files with its ``files.json`` (absent: written before file lists
+    existed, or the save was killed just before it; the pytree digest still applies)."""
+    listed = step_dir / FILES
+    if not listed.exists():
+        return
+    try:
+        expected = json.loads(listed.read_text())
+    except json.JSONDecodeError:
+        raise CheckpointError(f"checkpoint {step_dir} is corrupted ({FILES} is not valid JSON)") from None
+    actual = _file_digests(step_dir)
+    for name, (size, sha) in expected.items():
+        if name not in actual:
+            raise CheckpointError(f"checkpoint {step_dir} is incomplete ({name} is missing)")
+        if actual[name][0] != size:
+            raise CheckpointError(f"checkpoint {step_dir} is corrupted ({name}: {actual[name][0]} bytes, "
+                                  f"{size} written)")
+        if actual[name][1] != sha:
+            raise CheckpointError(f"checkpoint {step_dir} is corrupted ({name} does not match its saved digest)")
+
+
+def _candidates(path: str | Path) -> tuple[Path, list[int]]:
+    """``(checkpoints dir, steps to try, newest first)`` from a run dir, its ``checkpoints`` dir
+    (every finished step) or one step dir (that step alone)."""
     path = Path(path)
     if not path.exists():
         raise CheckpointError(f"checkpoint path {path} does not exist")
-    if path.name.isdigit() and (path / "meta").exists() | (path / "state").exists():
-        return path.parent, int(path.name)
+    if path.name.isdigit() and path.is_dir() and path.parent.name != "checkpoints_rejected":
+        return path.parent, [int(path.name)]
     directory = path / "checkpoints" if (path / "checkpoints").is_dir() else path
-    steps = sorted(int(p.name) for p in directory.iterdir() if p.is_dir() and p.name.isdigit())
+    steps = sorted((int(p.name) for p in directory.iterdir() if p.is_dir() and p.name.isdigit()), reverse=True)
     if not steps:
         raise CheckpointError(f"no finished checkpoint in {directory} (expected sub-directories named by update)")
-    return directory, steps[-1]
+    return directory, steps
 
 
 def latest_step(directory: str | Path) -> int | None:
-    """The last finished checkpoint step under ``directory`` (None if there is none)."""
+    """The last finished checkpoint step under ``directory`` (None if there is none); whether it
+    is intact is only known when it is restored."""
     try:
-        return _resolve(directory)[1]
+        return _candidates(directory)[1][0]
     except CheckpointError:
         return None
 
 
-def _restore(directory: Path, step: int, **items):
+def _short(e: Exception) -> str:
+    """One line of an exception (orbax/TensorStore messages can run to kilobytes)."""
+    text = str(e).strip().splitlines()
+    line = text[0] if text else ""
+    return f"{type(e).__name__}: {line[:160]}{'...' if len(line) > 160 else ''}"
+
+
+def _restore_one(directory: Path, step: int, **items):
+    """Restore ``items`` of one step and check them against the saved digests."""
+    where = directory / str(step)
+    _check_files(where)
     try:
         with _manager(directory, max_to_keep=None, create=False) as mngr:
-            return mngr.restore(step, args=ocp.args.Composite(**items))
+            out = mngr.restore(step, args=ocp.args.Composite(meta=ocp.args.JsonRestore(), **items))
     except Exception as e:  # noqa: BLE001 - any orbax/tensorstore failure means a bad checkpoint
-        raise CheckpointError(f"checkpoint {directory / str(step)} is corrupted or incomplete: "
-                              f"{type(e).__name__}: {e}") from e
+        raise CheckpointError(f"checkpoint {where} is unreadable ({_short(e)})") from e
+    if not isinstance(out.meta, dict) or "update" not in out.meta:
+        raise CheckpointError(f"checkpoint {where} is incomplete (no meta)")
+    saved = out.meta.get("digest")  # checkpoints written before digests existed are not verified
+    for name in ("state", "policy"):
+        if saved is not None and name in items and digest(out[name]) != saved.get(name):
+            raise CheckpointError(f"checkpoint {where} is corrupted ({name} does not match its saved digest)")
+    return out
 
 
-def restore(path: str | Path, abstract_state) -> tuple[object, dict, dict]:
-    """Restore the latest (or the given) checkpoint into the structure of ``abstract_state``
-    (e.g. ``jax.eval_shape`` of the vmapped ``init``).
+def _restore(path: str | Path, quarantine: bool = False, **items):
+    """The newest checkpoint under ``path`` that loads and matches its digests, warning (one line
+    on stderr) about each newer one that does not; with ``quarantine`` those are moved to
+    ``<run>/checkpoints_rejected/``. Returns ``(orbax Composite result, step)``."""
+    directory, steps = _candidates(path)
+    rejected = []
+    for step in steps:
+        try:
+            out = _restore_one(directory, step, **items)
+        except CheckpointError as e:
+            rejected.append(step)
+            more = "trying the previous one" if step != steps[-1] else "no older checkpoint"
+            print(f"warning: {e}; {more}", file=sys.stderr, flush=True)
+            continue
+        if quarantine:
+            for bad in rejected:
+                dest = directory.parent / "checkpoints_rejected" / str(bad)
+                dest.parent.mkdir(parents=True, exist_ok=True)
+                shutil.rmtree(dest, ignore_errors=True)
+                (directory / str(bad)).rename(dest)
+                print(f"warning: moved the unusable checkpoint {directory / str(bad)} to {dest}",
+                      file=sys.stderr, flush=True)
+        return out, step
+    raise CheckpointError(f"no intact checkpoint in {directory}: tried {', '.join(map(str, steps))}")
+
+
+def restore(path: str | Path, abstract_state, quarantine: bool = False) -> tuple[object, dict, dict]:
+    """Restore the newest intact checkpoint (or the given step dir) into the structure of
+    ``abstract_state`` (e.g. ``jax.eval_shape`` of the vmapped ``init``).
+
+    Args:
+        path: a run dir, its ``checkpoints`` dir, or one step dir (then no fallback).
+        abstract_state: the state's structure, shapes and dtypes.
+        quarantine: move newer checkpoints that failed to ``<run>/checkpoints_rejected/`` (a
+            resuming trainer does, so its next saves do not collide with them).
 
     Returns:
         ``(state, config dict, meta dict)``.
 
     Raises:
-        CheckpointError: missing, incomplete or corrupted checkpoint, or one of another shape.
+        CheckpointError: no checkpoint, or none that loads and matches its digests.
     """
-    directory, step = _resolve(path)
-    out = _restore(directory, step, state=ocp.args.StandardRestore(abstract_state),
-                   config=ocp.args.JsonRestore(), meta=ocp.args.JsonRestore())
-    if out.meta is None or out.config is None:
-        raise CheckpointError(f"checkpoint {directory / str(step)} is corrupted or incomplete: no config/meta")
+    out, _ = _restore(path, quarantine, state=ocp.args.StandardRestore(abstract_state),
+                      config=ocp.args.JsonRestore())
     return out.state, dict(out.config), dict(out.meta)
 
 
 def saved_config(path: str | Path) -> dict:
-    """The config dict stored with the latest (or the given) checkpoint."""
-    directory, step = _resolve(path)
-    return dict(_restore(directory, step, config=ocp.args.JsonRestore()).config)
+    """The config dict stored with the newest readable (or the given) checkpoint."""
+    out, _ = _restore(path, config=ocp.args.JsonRestore())
+    return dict(out.config)
 
 
 def load_policy_weights(path: str | Path) -> tuple[object, dict]:
-    """``(policy weights with the leading seed axis, config dict)`` of the latest (or the given)
-    checkpoint; raises ``CheckpointError`` when missing or unreadable."""
-    directory, step = _resolve(path)
-    out = _restore(directory, step, policy=ocp.args.StandardRestore(), config=ocp.args.JsonRestore())
+    """``(policy weights with the leading seed axis, config dict)`` of the newest intact (or the
+    given) checkpoint; raises ``CheckpointError`` when there is none."""
+    out, _ = _restore(path, policy=ocp.args.StandardRestore(), config=ocp.args.JsonRestore())
     return out.policy, dict(out.config)

@@ -1,6 +1,6 @@
 """Small array helpers that stay fast under ``vmap`` on CPU, and host-side helpers shared by the
 simulator, trainers and experiments: ``atomic_write`` (every file a user keeps), ``machine`` and
-``fmt_seconds`` (reports and progress lines)."""
+``fmt_seconds`` (reports and progress lines), ``whole_number`` and ``run_cli`` (command lines)."""
 
 from __future__ import annotations
 
@@ -100,3 +100,64 @@ def atomic_write(path: str | Path, data: str | bytes) -> Path:
             os.unlink(tmp)
         raise
     return path
+
+
+def whole_number(low: int = 1):
+    """An ``argparse`` type: a whole number ``>= low``, else a one-line usage error naming the value
+    (checked before anything compiles)."""
+    import argparse
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low:
+            raise argparse.ArgumentTypeError(f"value {text!r}; allowed: a whole number >= {low}")
+        return value
+
+    parse.__name__ = f"whole number >= {low}"
+    return parse
+
+
+def run_cli(main, errors: tuple[type[BaseException], ...] = (ValueError,), interrupted: str = "") -> None:
+    """Run a command line's ``main()`` the way users expect: a user's mistake (``errors``) prints
+    ``error: <message>`` on one line and exits 2; Ctrl-C prints one line (with ``interrupted``, e.g.
+    how to resume) and exits 130. ``RAIDJAX_DEBUG=1`` re-raises with the traceback."""
+    import sys
+
+    try:
+        main()
+    except errors as e:
+        if os.environ.get("RAIDJAX_DEBUG"):
+            raise
+        print(f"error: {e}", file=sys.stderr, flush=True)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        if os.environ.get("RAIDJAX_DEBUG"):
+            raise
+        print(f"interrupted{'; ' + interrupted if interrupted else ''}", file=sys.stderr, flush=True)
+        sys.exit(130)
+
+
+def finite_json(obj, **kwargs) -> str:
+    """``json.dumps`` with NaN and infinities written as ``null`` (bare ``NaN`` is not JSON for most
+    parsers) and numpy scalars as numbers; ``kwargs`` go to ``json.dumps``."""
+    import json
+    import math
+
+    import numpy as np
+
+    def clean(x):
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items()}
+        if isinstance(x, list | tuple):
+            return [clean(v) for v in x]
+        if isinstance(x, np.ndarray | np.generic) or hasattr(x, "__jax_array__") or type(x).__name__ == "ArrayImpl":
+            x = np.asarray(x)
+            return clean(x.tolist()) if x.ndim else clean(x.item())
+        if isinstance(x, float) and not math.isfinite(x):
+            return None
+        return x
+
+    return json.dumps(clean(obj), allow_nan=False, **kwargs)

@@ -2,8 +2,9 @@
 field) and ``DIR/metrics.csv`` (the scalar fields), optionally mirrored to TensorBoard.
 
 On resume, rows past the checkpoint are dropped first, so a resumed run's log reads as if it had
-never stopped. Both files are rewritten atomically when trimmed and appended one whole row at a
-time afterwards.
+never stopped; a torn line (a kill in the middle of a write) is dropped with a warning naming the
+file. Both files are rewritten atomically when trimmed and appended one whole row at a time
+(one ``write`` call) afterwards.
 """
 
 from __future__ import annotations
@@ -12,11 +13,12 @@ import csv
 import io
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from raidjax.utils import atomic_write
+from raidjax.utils import atomic_write, finite_json
 
 
 def _scalar(v) -> bool:
@@ -57,12 +59,14 @@ class MetricsLog:
         self.jsonl, self.csv = out / "metrics.jsonl", out / "metrics.csv"
         rows = []
         if resume_update is not None and self.jsonl.exists():
-            for line in self.jsonl.read_text().splitlines():
+            for i, line in enumerate(self.jsonl.read_text().splitlines(), 1):
                 try:
                     row = json.loads(line)
                 except json.JSONDecodeError:  # a torn last line from a killed run
+                    print(f"warning: {self.jsonl} line {i} is not a whole JSON row (a write cut short); dropped",
+                          file=sys.stderr, flush=True)
                     continue
-                if row.get("update", math.inf) <= resume_update:
+                if isinstance(row, dict) and row.get("update", math.inf) <= resume_update:
                     rows.append(row)
         self.fields = [k for k, v in rows[0].items() if _scalar(v) or v is None] if rows else None
         atomic_write(self.jsonl, "".join(json.dumps(r) + "\n" for r in rows))
@@ -88,7 +92,7 @@ class MetricsLog:
                     self.tb.add_scalar(k, v, step)
             self.tb.flush()
         with self.jsonl.open("a") as f:
-            f.write(json.dumps(row) + "\n")
+            f.write(finite_json(row) + "\n")
         new = self.fields is None
         if new:
             self.fields = [k for k, v in row.items() if _scalar(v) or v is None]

@@ -14,7 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from experiments.runfolder import RunFolder, markdown_table  # noqa: E402
+from trainers.runfolder import RunFolder, markdown_table  # noqa: E402
 
 # GAME.md §9 (the paper's Table "Win rate between MARL and Heuristic agent", 500 games)
 PAPER_WIN_RATE = {"PT-RD": (0.000, 0.002, 0.029, 0.058), "PT-HR": (0.089, 0.371, 0.698, 0.830),

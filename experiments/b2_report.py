@@ -15,9 +15,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from experiments.runfolder import RunFolder, markdown_table  # noqa: E402
 from raidjax import pcg  # noqa: E402
 from raidjax.pcg import metrics as pm  # noqa: E402
+from trainers.runfolder import RunFolder, markdown_table  # noqa: E402
 
 # Paper, controllability table: target -> (W_c mean, W_c SD, |W_t - W_c| mean, SD).
 PAPER_CONTROL = {

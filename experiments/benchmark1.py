@@ -20,7 +20,7 @@ Protocols (``PROTOCOLS``; GAME.md §11):
 - ``raidjax``: train on the test content too (seen and unseen content differ only in the skill
   range) and redraw the range at every episode.
 
-Stages (``experiments.runfolder``; rerunning the command resumes): ``train`` (orbax checkpoints
+Stages (``trainers.runfolder``; rerunning the command with ``--resume`` resumes): ``train`` (orbax checkpoints
 every few chunks, progress lines with decisions/s and ETA), ``evaluate`` (every run's team and
 PT-HR/PT-RD, ``games`` games per cell, all cells in one vmapped playtest), ``heatmaps``
 (MA-POCA1 vs MA-POCA3 occupancy over ranges), ``report`` (``experiments.b1_report``).
@@ -38,13 +38,13 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
-from experiments.runfolder import RunFolder
-from raidjax.utils import atomic_write, fmt_seconds
+from raidjax.utils import atomic_write, fmt_seconds, run_cli, whole_number
 from trainers import checkpoint
 from trainers.config import PRESETS, Config
 from trainers.mapoca import RANGE_TABLE, make_trainer, range_table
 from trainers.metrics import MetricsLog
 from trainers.networks import sample_actions
+from trainers.runfolder import RunFolder
 
 TABLE_RANGES = (5.0, 9.0, 13.0, 17.0)
 ROBUST_SETS = {"MA-POCA1": (5.0,), "MA-POCA2": (5.0, 9.0), "MA-POCA3": (5.0, 9.0, 13.0),
@@ -161,7 +161,7 @@ def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chu
     ckpt = rf.path("checkpoints", "mapoca")
     t0 = time.perf_counter()
     if checkpoint.latest_step(ckpt) is not None:
-        runner, _, meta = checkpoint.restore(ckpt, jax.eval_shape(init, *inputs))
+        runner, _, meta = checkpoint.restore(ckpt, jax.eval_shape(init, *inputs), quarantine=True)
         start, seconds_before = meta["chunk"], meta["seconds"]
         rf.log(f"train: resumed at chunk {start}/{cfg.num_chunks}")
     else:
@@ -174,7 +174,8 @@ def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chu
     t_loop, done_here = time.perf_counter(), 0
     for c in range(start, cfg.num_chunks):
         if max_chunks is not None and c - start >= max_chunks:
-            raise Interrupted(f"stopped after chunk {c}/{cfg.num_chunks} (--max-chunks); rerun to resume")
+            raise Interrupted(f"stopped after chunk {c}/{cfg.num_chunks} (--max-chunks); "
+                              "rerun with --resume to continue")
         runner, m = chunk(runner)
         m = jax.device_get(m)
         done_here += 1
@@ -190,7 +191,8 @@ def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chu
         rf.log(f"train [{c + 1}/{cfg.num_chunks}] {(c + 1) * per_chunk / 1e6:.2f}M decisions/run  {rate:,.0f} "
                f"decisions/s  ETA {fmt_seconds((cfg.num_chunks - c - 1) * el / done_here)}  training win "
                + "  ".join(f"{g} {w:.2f}" for g, w in groups.items()))
-        if (c + 1) % scale.checkpoint_chunks == 0 or c + 1 == cfg.num_chunks:
+        last_here = max_chunks is not None and c + 1 - start == max_chunks  # checkpoint before stopping
+        if (c + 1) % scale.checkpoint_chunks == 0 or c + 1 == cfg.num_chunks or last_here:
             meta = {"chunk": c + 1, "update": (c + 1) * cfg.updates_per_chunk, "env_steps": (c + 1) * per_chunk,
                     "seconds": seconds_before + el}
             checkpoint.save(ckpt, runner, runner.params["actor"], cfg.to_dict(), meta)
@@ -200,11 +202,13 @@ def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chu
 
 
 def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int):
-    """``(actor module, actor weights with a leading run axis)`` from the last checkpoint."""
+    """``(actor module, actor weights with a leading run axis)`` from the final checkpoint (an
+    older one would be a less trained team: no fallback here)."""
     cfg = config_of(scale)  # the protocol changes no shape
     trainer = make_trainer(cfg, redraw_ranges=True)
     abstract = jax.eval_shape(jax.vmap(trainer.init), *_run_inputs(runs, base_seed))
-    runner, _, _ = checkpoint.restore(rf.path("checkpoints", "mapoca"), abstract)
+    final = rf.path("checkpoints", "mapoca", str(cfg.num_chunks * cfg.updates_per_chunk))
+    runner, _, _ = checkpoint.restore(final, abstract)
     return trainer.actor, runner.params["actor"]
 
 
@@ -296,18 +300,23 @@ def main(argv=None) -> dict:
     """Run (or resume) Benchmark 1; returns the summary (also the last stdout line)."""
     ap = argparse.ArgumentParser(prog="python -m experiments.benchmark1", description=__doc__.split("\n")[0])
     ap.add_argument("--scale", choices=sorted(SCALES), default="smoke")
-    ap.add_argument("--out", required=True, help="run folder (rerun the same command to resume)")
+    ap.add_argument("--out", required=True, help="run folder (new, or holding this run with --resume)")
+    ap.add_argument("--resume", action="store_true", help="continue the run in --out (same settings; a finished run "
+                    "is left as it is)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--protocol", choices=sorted(PROTOCOLS), default="paper",
                     help="paper: train MA-POCA1..4 and populations at cool time 0.5, range redrawn every second "
                     "episode; raidjax: train at the test content (cool time 1.0), range redrawn every episode")
-    ap.add_argument("--max-chunks", type=int, help="stop training after this many chunks (tests resuming)")
+    ap.add_argument("--max-chunks", type=whole_number(1), help="stop training after this many chunks (tests resuming)")
     args = ap.parse_args(argv)
     scale = SCALES[args.scale]
     runs = runs_of(scale, args.protocol)
     rf = RunFolder(args.out, {"benchmark": 1, "scale": args.scale, "seed": args.seed, "protocol": args.protocol,
                               "budgets": dataclasses.asdict(scale),
-                              "trainer": config_of(scale, args.protocol).to_dict(), "runs": runs})
+                              "trainer": config_of(scale, args.protocol).to_dict(), "runs": runs},
+                   resume=args.resume)
+    if rf.finished:
+        return rf.already_finished()
     from experiments import b1_report
 
     try:
@@ -321,5 +330,11 @@ def main(argv=None) -> dict:
     return rf.finish({"benchmark": 1, "scale": args.scale, "protocol": args.protocol, **summary, "train": timing})
 
 
+def cli(argv=None) -> None:
+    """``main`` as a command line: one-line errors (exit 2), one line on Ctrl-C (exit 130)."""
+    run_cli(lambda: main(argv), (ValueError, checkpoint.CheckpointError),
+            "finished stages and the newest checkpoint are kept: rerun the same command with --resume")
+
+
 if __name__ == "__main__":
-    main()
+    cli()

@@ -3,8 +3,8 @@ resumable command::
 
     python -m experiments.benchmark2 --scale {smoke,cpu,paper} --out DIR [--seed N] [--protocol {paper,raidjax}]
 
-Stages (each a ``RunFolder.stage``; rerunning the same command resumes after the last finished
-one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
+Stages (each a ``RunFolder.stage``; rerunning the same command with ``--resume`` resumes after the
+last finished one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
 
 1. ``train``: PPO-PCGRL (``trainers.ppo_pcgrl``) in jitted chunks, orbax checkpoints in
    ``DIR/checkpoints/ppo``, per-update metrics in ``csv/ppo_train.csv``, progress in ``log.txt``.
@@ -39,14 +39,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from experiments.runfolder import RunFolder
 from raidjax import pcg
 from raidjax.pcg import metrics as pm
-from raidjax.utils import atomic_write, fmt_seconds
+from raidjax.utils import atomic_write, fmt_seconds, run_cli, whole_number
 from trainers import checkpoint
 from trainers.generate import evaluate, target_groups
 from trainers.metrics import update_rows
 from trainers.ppo_pcgrl import PPOConfig, get_config, make_train
+from trainers.runfolder import RunFolder
 
 METHODS = ("PPO", "PCG-HR", "PCG-RD")
 FIELDS = ("target", "skill", "win_rate", "gen_win_rate", "edits", "reached")
@@ -119,7 +119,9 @@ def ppo_config(scale: Scale) -> PPOConfig:
 def _parse(argv=None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description="Benchmark 2 (content generation) of the RaidEnv paper")
     ap.add_argument("--scale", choices=sorted(SCALES), default="cpu")
-    ap.add_argument("--out", required=True, help="run folder (rerun the same command to resume)")
+    ap.add_argument("--out", required=True, help="run folder (new, or holding this run with --resume)")
+    ap.add_argument("--resume", action="store_true", help="continue the run in --out (same settings; a finished run "
+                    "is left as it is)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--protocol", choices=sorted(pm.PROTOCOLS), default="paper",
                     help="paper: strict 40-decision episodes measured with eval_games games at every edit, greedy "
@@ -133,9 +135,10 @@ def _parse(argv=None) -> argparse.Namespace:
                     "comma-separated signs in {-1,0,1} for range,cool_time,cast_time,coefficient (1,1,1,1 = heavy "
                     "vs light skills)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
-    ap.add_argument("--total-steps", type=int, help="PPO generator steps per group (default: the scale's)")
-    ap.add_argument("--seeds", type=int, help="PPO seeds trained together (default: the scale's)")
-    ap.add_argument("--episodes", type=int, help="generation episodes per target and method (default: the scale's)")
+    ap.add_argument("--total-steps", type=whole_number(1), help="PPO generator steps per group (default: the scale's)")
+    ap.add_argument("--seeds", type=whole_number(1), help="PPO seeds trained together (default: the scale's)")
+    ap.add_argument("--episodes", type=whole_number(1),
+                    help="generation episodes per target and method (default: the scale's)")
     ap.add_argument("--pool-repeats", action="store_true",
                     help="generation env: re-measuring an unchanged skill pools its games (all three "
                     "generators, training and generation)")
@@ -160,7 +163,8 @@ class _Learner:
         """``(runner, update)`` of the latest checkpoint, or ``(None, 0)`` without checkpoints."""
         if checkpoint.latest_step(self.ckpt) is None:
             return None, 0
-        runner, _, meta = checkpoint.restore(self.ckpt, jax.eval_shape(self.init, self.keys, self.tg))
+        runner, _, meta = checkpoint.restore(self.ckpt, jax.eval_shape(self.init, self.keys, self.tg),
+                                             quarantine=True)
         return runner, int(meta["update"])
 
 
@@ -286,7 +290,7 @@ def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "pap
     total = lr.config.num_updates
     if checkpoint.latest_step(lr.ckpt) != total:
         raise RuntimeError(f"no final PPO checkpoint (update {total}) in {lr.ckpt}")
-    params, _ = checkpoint.load_policy_weights(lr.ckpt)
+    params, _ = checkpoint.load_policy_weights(lr.ckpt / str(total))  # the final one, no fallback
     per_part = scale.episodes // scale.parts
     kwargs = generation_kwargs(scale, protocol_of(scale, protocol), lr.config.max_edits, per_part)
     t0, done_here, parts = time.perf_counter(), 0, []
@@ -328,7 +332,9 @@ def main(argv=None) -> dict:
     config = {"benchmark": 2, "scale": a.scale, "seed": a.seed, "protocol": dataclasses.asdict(pr),
               **dataclasses.asdict(scale),
               "ppo_config": dataclasses.asdict(ppo_config(scale)), "targets": list(pm.TARGETS)}
-    run = RunFolder(a.out, config)
+    run = RunFolder(a.out, config, resume=a.resume)
+    if run.finished:
+        return run.already_finished()
     tr = run.stage("train", lambda: stage_train(run, scale, a.seed))
     ge = run.stage("generate", lambda: stage_generate(run, scale, a.seed, a.protocol))
     rep = run.stage("report", lambda: b2_report.report(run, load_generated(run.out / "generated.npz"),
@@ -342,8 +348,11 @@ def main(argv=None) -> dict:
     return run.finish(summary)
 
 
+def cli(argv=None) -> None:
+    """``main`` as a command line: one-line errors (exit 2), one line on Ctrl-C (exit 130)."""
+    run_cli(lambda: main(argv), (ValueError, checkpoint.CheckpointError),
+            "finished stages and the newest checkpoint are kept: rerun the same command with --resume")
+
+
 if __name__ == "__main__":
-    try:
-        main()
-    except ValueError as e:
-        raise SystemExit(f"error: {e}") from e
+    cli()

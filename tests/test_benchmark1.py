@@ -24,7 +24,7 @@ def run(tmp_path_factory):
     state_after_interrupt = {"train_done": (out / "stages" / "train.json").exists(),
                              "checkpoints": sorted(p.name for p in (out / "checkpoints" / "mapoca").iterdir()
                                                    if p.name.isdigit())}
-    summary = benchmark1.main(["--scale", "smoke", "--out", str(out)])  # resumes and finishes
+    summary = benchmark1.main(["--scale", "smoke", "--out", str(out), "--resume"])  # resumes and finishes
     return out, first, state_after_interrupt, summary
 
 
@@ -72,12 +72,13 @@ def test_tables_recompute_from_raw_cells(run):
             assert float(row["adjusted_mean"]) == pytest.approx(float(row["win_mean"]) / pop)
 
 
-def test_rerun_skips_finished_stages_and_other_settings_are_refused(run):
+def test_finished_run_resumed_is_a_no_op_and_other_settings_are_refused(run):
     out, *_ = run
-    again = benchmark1.main(["--scale", "smoke", "--out", str(out)])
-    log = (out / "log.txt").read_text()
-    for stage in ["train", "evaluate", "heatmaps", "report"]:
-        assert f"stage {stage}: already done" in log
-    assert again["win_rate"] == run[3]["win_rate"]
-    with pytest.raises(ValueError, match="other settings"):
-        benchmark1.main(["--scale", "cpu", "--out", str(out)])
+    summary_bytes = (out / "summary.json").read_bytes()
+    again = benchmark1.main(["--scale", "smoke", "--out", str(out), "--resume"])
+    assert "this run has already finished: nothing to do" in (out / "log.txt").read_text()
+    assert again["win_rate"] == run[3]["win_rate"] and (out / "summary.json").read_bytes() == summary_bytes
+    with pytest.raises(ValueError, match="already holds a run: pass --resume"):
+        benchmark1.main(["--scale", "smoke", "--out", str(out)])
+    with pytest.raises(ValueError, match="other settings .*scale: saved \"smoke\", now \"cpu\""):
+        benchmark1.main(["--scale", "cpu", "--out", str(out), "--resume"])

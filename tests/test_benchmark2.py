@@ -93,13 +93,13 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
         assert float(mine["0.1"]["paper_err_mean"]) == pytest.approx(
             {"PCG-HR": 0.044, "PPO": 0.156, "PCG-RD": 0.335}[m])
 
-    # A second invocation resumes: every stage skipped, fast.
+    # The finished run resumed: a no-op that says so, fast.
     n_log = len((out / "log.txt").read_text().splitlines())
     t = time.perf_counter()
-    again = b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3"])
+    again = b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3", "--resume"])
     assert time.perf_counter() - t < 20
     new_log = (out / "log.txt").read_text().splitlines()[n_log:]
-    assert sum("already done" in line for line in new_log) == 3
+    assert any("already finished: nothing to do" in line for line in new_log)
     assert again["mean_error"] == summary["mean_error"]
 
     # An interruption mid-training (the last checkpoint and the stage record lost): training resumes
@@ -109,11 +109,13 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
     import jax
 
     ckpt = out / "checkpoints" / "ppo"
-    learner = b2._Learner(b2.RunFolder(out, json.loads((out / "config.json").read_text())), b2.SCALES["smoke"], 3)
+    learner = b2._Learner(b2.RunFolder(out, json.loads((out / "config.json").read_text()), resume=True),
+                          b2.SCALES["smoke"], 3)
     final, _ = learner.restore()
     shutil.rmtree(ckpt / str(cfg.num_updates))
-    (out / "stages" / "train.json").unlink()
-    b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3"])
+    for name in ("stages/train.json", "summary.json"):
+        (out / name).unlink()
+    b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3", "--resume"])
     log = (out / "log.txt").read_text()
     assert f"resumed from checkpoint at update {cfg.num_updates - 1}/{cfg.num_updates}" in log
     assert [int(r["update"]) for r in _csv(out / "csv" / "ppo_train.csv")] == list(range(1, cfg.num_updates + 1))
@@ -123,14 +125,16 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
 
     # Other settings into the same folder: a clear error.
     with pytest.raises(ValueError, match="other settings"):
-        b2.main(["--scale", "cpu", "--out", str(out)])
-    with pytest.raises(ValueError, match="seed"):
-        b2.main(["--scale", "smoke", "--out", str(out), "--seed", "4"])
+        b2.main(["--scale", "cpu", "--out", str(out), "--resume"])
+    with pytest.raises(ValueError, match="seed: saved 3, now 4"):
+        b2.main(["--scale", "smoke", "--out", str(out), "--seed", "4", "--resume"])
+    with pytest.raises(ValueError, match="already holds a run: pass --resume"):
+        b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3"])
     # every variant is recorded in config.json
     for variant in (["--pool-repeats"], ["--ent-coef", "0.01"], ["--episodes", "4"],
                     ["--edit-cost", "2", "--goal-cost", "1", "--goal-axis", "1,1,1,1"]):
         with pytest.raises(ValueError, match="other settings"):
-            b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3", *variant])
+            b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3", "--resume", *variant])
     np.testing.assert_array_equal(b2.load_generated(out / "generated.npz")["PPO"]["win_rate"],
                                   gens["PPO"]["win_rate"])
 

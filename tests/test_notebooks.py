@@ -84,7 +84,7 @@ def test_benchmark_results(monkeypatch, tmp_path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from experiments.runfolder import RunFolder, markdown_table
+    from trainers.runfolder import RunFolder, markdown_table
 
     run = RunFolder(tmp_path / "run", {"scale": "smoke", "games": 16})
     table = markdown_table(["agent", "range 5", "range 9"], [["PT-HR synthetic", 0.125, 0.5]])

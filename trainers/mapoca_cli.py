@@ -5,7 +5,9 @@ vmapped together), prints progress, appends one metrics row per chunk to
 ``DIR/metrics.jsonl`` and ``DIR/metrics.csv``, checkpoints every ``checkpoint_every`` updates,
 and at the end evaluates the team over ``eval_games`` games next to PT-HR on the same content.
 The last stdout line is one JSON object (``win_rate``, ``heuristic_win_rate``,
-``env_steps_per_s``, ``seconds``, ...).
+``env_steps_per_s``, ``seconds``, ...), also written to ``DIR/result.json``. The run folder
+follows ``trainers.runfolder``: ``--resume`` continues from the newest intact checkpoint with the
+same settings; anything else on an existing run is refused.
 
     python -m trainers.mapoca_cli --preset cpu --skill-range 13 --total-steps 2000000 --seeds 1 --out runs/r13
 """
@@ -14,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -22,30 +23,35 @@ import jax
 import numpy as np
 
 import raidjax
-from raidjax.utils import atomic_write, fmt_seconds, machine
+from raidjax.utils import atomic_write, fmt_seconds, machine, run_cli, whole_number
 from trainers import checkpoint
 from trainers.config import Config, load_config
 from trainers.mapoca import load_policy, make_trainer, summarize
 from trainers.metrics import MetricsLog
+from trainers.runfolder import RunFolder, check_out
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    """CLI arguments (see the module docstring)."""
-    ap = argparse.ArgumentParser(prog="python -m trainers.mapoca_cli", description="Train MA-POCA on raidjax.")
+    """CLI arguments (see the module docstring); numbers are checked here, before compiling."""
+    ap = argparse.ArgumentParser(prog="python -m trainers.mapoca_cli", description="Train MA-POCA on raidjax.",
+                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument("--preset", default="cpu", choices=["paper", "cpu"])
     ap.add_argument("--config", help="JSON file of Config fields (applied after the preset)")
     ap.add_argument("--skill-range", type=float, nargs="+", help="range(s) of the players' skill; "
-                    "several values = drawn per episode")
-    ap.add_argument("--total-steps", type=int, help="environment decisions per seed")
-    ap.add_argument("--seeds", type=int, default=1, help="seeds trained together (vmapped)")
+                    "several values = drawn per episode (default: the preset's)")
+    ap.add_argument("--total-steps", type=whole_number(1),
+                    help="environment decisions per seed (default: the preset's)")
+    ap.add_argument("--seeds", type=whole_number(1), default=1, help="seeds trained together (vmapped)")
     ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
-    ap.add_argument("--out", required=True, help="run directory (checkpoints, metrics)")
-    ap.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
-    ap.add_argument("--checkpoint-every", type=int, help="updates between checkpoints")
-    ap.add_argument("--updates-per-chunk", type=int, help="updates per jitted chunk (log row)")
-    ap.add_argument("--eval-games", type=int, help="games of the final evaluation (0 skips it)")
-    ap.add_argument("--max-chunks", type=int, help="stop after this many chunks of this invocation "
-                    "(testing interruption/resume)")
+    ap.add_argument("--out", required=True, help="run folder (new, or holding this run with --resume)")
+    ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
+                    "checkpoint (same settings; a finished run is left as it is)")
+    ap.add_argument("--checkpoint-every", type=whole_number(1), help="updates between checkpoints")
+    ap.add_argument("--updates-per-chunk", type=whole_number(1), help="updates per jitted chunk (log row)")
+    ap.add_argument("--eval-games", type=whole_number(0), help="games of the final evaluation (0 skips it; "
+                    "may change on --resume)")
+    ap.add_argument("--max-chunks", type=whole_number(1), help="stop (after a checkpoint) once this many chunks "
+                    "ran in this invocation")
     return ap.parse_args(argv)
 
 
@@ -55,15 +61,16 @@ def evaluate(out: Path, cfg: Config, n_seeds: int, key: jax.Array) -> dict:
     JSON-able dict."""
     per_range = {}
     policies = [load_policy(out, seed=s) for s in range(n_seeds)]  # one compile per seed
+    rate = lambda x: round(float(x), 6)  # float32 win rates without their float32 noise (0.726, not 0.72600001)
     for r in cfg.skill_ranges:
         content = raidjax.make_params(skill_range=r)
-        hr = float(raidjax.win_rate(raidjax.playtest(key, content, raidjax.policies.heuristic, cfg.eval_games)))
-        wins = [float(raidjax.win_rate(raidjax.playtest(key, content, p, cfg.eval_games))) for p in policies]
-        per_range[f"{r:g}"] = {"win_rate": float(np.mean(wins)), "win_rate_per_seed": wins,
+        hr = rate(raidjax.win_rate(raidjax.playtest(key, content, raidjax.policies.heuristic, cfg.eval_games)))
+        wins = [rate(raidjax.win_rate(raidjax.playtest(key, content, p, cfg.eval_games))) for p in policies]
+        per_range[f"{r:g}"] = {"win_rate": rate(np.mean(wins)), "win_rate_per_seed": wins,
                                "heuristic_win_rate": hr}
     return {
-        "win_rate": float(np.mean([v["win_rate"] for v in per_range.values()])),
-        "heuristic_win_rate": float(np.mean([v["heuristic_win_rate"] for v in per_range.values()])),
+        "win_rate": rate(np.mean([v["win_rate"] for v in per_range.values()])),
+        "heuristic_win_rate": rate(np.mean([v["heuristic_win_rate"] for v in per_range.values()])),
         "per_range": per_range,
     }
 
@@ -72,34 +79,26 @@ def main(argv=None) -> dict:
     """Train (or resume), log, checkpoint, evaluate; print and return the final JSON object."""
     t_start = time.perf_counter()
     args = parse_args(argv)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    ckpt_dir = out / "checkpoints"
+    check_out(args.out)
     cfg = load_config(args.preset, args.config, skill_ranges=args.skill_range, total_steps=args.total_steps,
                       checkpoint_every=args.checkpoint_every, updates_per_chunk=args.updates_per_chunk,
                       eval_games=args.eval_games)
-    if not args.resume and checkpoint.latest_step(ckpt_dir) is not None:
-        raise SystemExit(f"{ckpt_dir} already holds checkpoints: pass --resume to continue, or a new --out")
-    if args.resume:
-        if checkpoint.latest_step(ckpt_dir) is None:
-            raise checkpoint.CheckpointError(f"--resume: no finished checkpoint in {ckpt_dir}")
-        cfg = Config.from_dict(checkpoint.saved_config(ckpt_dir))  # the run's own config: the resumed run must match
-        print("resuming with the checkpoint's config (flags other than --out/--eval-games ignored)", flush=True)
-        if args.eval_games is not None:
-            cfg = cfg.replace(eval_games=args.eval_games)
+    settings = {"trainer": "mapoca", "preset": args.preset, "seeds": args.seeds, "seed": args.seed,
+                "config": {k: v for k, v in cfg.to_dict().items() if k != "eval_games"}, "eval_games": cfg.eval_games}
+    rf = RunFolder(args.out, settings, resume=args.resume, ignore=("eval_games",))
+    if rf.finished:
+        return rf.already_finished()
+    out, ckpt_dir = rf.out, rf.out / "checkpoints"
     trainer = make_trainer(cfg)
     keys = jax.random.split(jax.random.PRNGKey(args.seed), args.seeds)
     init = jax.jit(jax.vmap(trainer.init))
     t0 = time.perf_counter()
-    if args.resume:
-        runner, saved_cfg, meta = checkpoint.restore(ckpt_dir, jax.eval_shape(init, keys))
+    if checkpoint.latest_step(ckpt_dir) is not None:
+        runner, _, meta = checkpoint.restore(ckpt_dir, jax.eval_shape(init, keys), quarantine=True)
         start_chunk, seconds_before = meta["chunk"], meta["seconds"]
-        n_seeds = jax.tree.leaves(runner.params)[0].shape[0]
-        if n_seeds != args.seeds:
-            raise ValueError(f"--seeds: {args.seeds} given, the checkpoint holds {n_seeds}")
-    else:
+        print(f"resumed from the checkpoint at update {meta['update']}", flush=True)
+    else:  # a new run, or one stopped before its first checkpoint
         runner, start_chunk, seconds_before = init(keys), 0, 0.0
-    atomic_write(out / "config.json", json.dumps(cfg.to_dict(), indent=1))
     chunk = jax.jit(jax.vmap(trainer.chunk), donate_argnums=0).lower(runner).compile()
     compile_s = time.perf_counter() - t0
     print(f"compiled in {compile_s:.1f}s; {cfg.num_updates} updates x {cfg.decisions_per_update} decisions "
@@ -124,24 +123,34 @@ def main(argv=None) -> dict:
         print(f"[{c + 1}/{cfg.num_chunks}] steps {steps / 1e6:.2f}M/{total / 1e6:.2f}M"
               f"  {sps:,.0f} steps/s  ETA {fmt_seconds(eta)}  return {row['return']:.2f}  win {row['win_rate']:.3f}"
               f"  len {row['length']:.0f}  ent {row['entropy']:.2f}", flush=True)
-        if (c + 1) % every == 0 or c + 1 == cfg.num_chunks:
+        if (c + 1) % every == 0 or c + 1 == end_chunk:  # always before stopping, so --resume can continue
             meta = {"chunk": c + 1, "update": (c + 1) * cfg.updates_per_chunk, "env_steps": steps,
                     "seconds": seconds_before + el}
             checkpoint.save(ckpt_dir, runner, runner.params["actor"], cfg.to_dict(), meta)
     train_s = time.perf_counter() - t_loop
+    if end_chunk < cfg.num_chunks:
+        print(f"stopped after chunk {end_chunk}/{cfg.num_chunks} (--max-chunks); rerun with --resume to continue",
+              flush=True)
+        return {"stopped_at_chunk": end_chunk}
     result = {"preset": args.preset, "skill_ranges": list(cfg.skill_ranges), "seeds": args.seeds,
               "env_steps": end_chunk * per_chunk,
-              "env_steps_per_s": done_here * per_chunk * args.seeds / max(train_s, 1e-9),
-              "compile_seconds": compile_s, "train_seconds": seconds_before + train_s}
-    if cfg.eval_games > 0 and end_chunk == cfg.num_chunks:
+              "env_steps_per_s": round(done_here * per_chunk * args.seeds / max(train_s, 1e-9), 1),
+              "compile_seconds": round(compile_s, 2), "train_seconds": round(seconds_before + train_s, 2)}
+    if cfg.eval_games > 0:
         t_eval = time.perf_counter()
         result.update(evaluate(out, cfg, args.seeds, jax.random.key(args.seed + 12345)))
-        result["eval_seconds"] = time.perf_counter() - t_eval
-    result["seconds"] = time.perf_counter() - t_start
+        result["eval_seconds"] = round(time.perf_counter() - t_eval, 2)
+    result["seconds"] = round(time.perf_counter() - t_start, 2)
     atomic_write(out / "result.json", json.dumps(result, indent=1))
     print(json.dumps(result), flush=True)
     return result
 
 
+def cli(argv=None) -> None:
+    """``main`` as a command line: one-line errors (exit 2), one line on Ctrl-C (exit 130)."""
+    run_cli(lambda: main(argv), (ValueError, checkpoint.CheckpointError),
+            "the newest checkpoint is kept: rerun the same command with --resume to continue")
+
+
 if __name__ == "__main__":
-    sys.exit(0 if main() else 1)
+    cli()

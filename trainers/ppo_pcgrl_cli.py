@@ -4,9 +4,11 @@ progress lines, metrics (``trainers.metrics``), checkpoints (``trainers.checkpoi
 
     python -m trainers.ppo_pcgrl_cli --preset cpu --total-steps 8192 --seeds 1 --out runs/ppo_cpu
 
-The last stdout line is one JSON object: ``mean_error`` (PPO), ``heuristic_mean_error`` (PCG-HR),
-``random_mean_error`` (PCG-RD), all on the same protocol (targets 0.1..0.7, final skills
-re-measured with ``--eval-games`` games), and ``seconds``.
+The last stdout line is one JSON object, also written to ``DIR/result.json``: ``mean_error``
+(PPO), ``heuristic_mean_error`` (PCG-HR), ``random_mean_error`` (PCG-RD), all on the same
+protocol (targets 0.1..0.7, final skills re-measured with ``--eval-games`` games), and
+``seconds``. The run folder follows ``trainers.runfolder``: ``--resume`` continues from the newest
+intact checkpoint with the same settings; anything else on an existing run is refused.
 """
 
 from __future__ import annotations
@@ -15,31 +17,32 @@ import argparse
 import json
 import os
 import time
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg
-from raidjax.utils import atomic_write, fmt_seconds
+from raidjax.utils import atomic_write, finite_json, fmt_seconds, run_cli, whole_number
 from trainers import checkpoint
 from trainers.generate import evaluate, target_groups
 from trainers.metrics import MetricsLog, update_rows
 from trainers.ppo_pcgrl import PRESETS, get_config, make_train
+from trainers.runfolder import RunFolder, check_out
 
 
 def _args(argv=None):
     ap = argparse.ArgumentParser(prog="python -m trainers.ppo_pcgrl_cli", description="PPO-PCGRL on raidjax.pcg",
                                  formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument("--preset", choices=sorted(PRESETS), default="cpu")
-    ap.add_argument("--total-steps", type=int, help="generator steps per group (default: the preset's)")
-    ap.add_argument("--seeds", type=int, default=1)
-    ap.add_argument("--out", default="runs/ppo_pcgrl")
-    ap.add_argument("--resume", action="store_true")
+    ap.add_argument("--total-steps", type=whole_number(1), help="generator steps per group (default: the preset's)")
+    ap.add_argument("--seeds", type=whole_number(1), default=1)
+    ap.add_argument("--out", default="runs/ppo_pcgrl", help="run folder (new, or holding this run with --resume)")
+    ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
+                    "checkpoint (same settings; a finished run is left as it is)")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--n-games", type=int, help="playtest games per training measurement")
-    ap.add_argument("--n-arenas", type=int, help="generator episodes stepped in parallel")
+    ap.add_argument("--n-games", type=whole_number(1), help="playtest games per training measurement")
+    ap.add_argument("--n-arenas", type=whole_number(1), help="generator episodes stepped in parallel")
     ap.add_argument("--lr", type=float)
     ap.add_argument("--edit-cost", type=float, help="learner penalty per tick moved")
     ap.add_argument("--goal-cost", type=float,
@@ -50,25 +53,35 @@ def _args(argv=None):
     ap.add_argument("--ent-coef", type=float, help="entropy bonus coefficient")
     ap.add_argument("--pool-repeats", action="store_true", default=None,
                     help="re-measuring an unchanged skill pools its games (sharper win rate when holding)")
-    ap.add_argument("--chunk", type=int, default=4, help="updates per jitted chunk (progress/checkpoint period)")
-    ap.add_argument("--eval-episodes", type=int, default=8, help="episodes per target and method")
-    ap.add_argument("--eval-gen-games", type=int, default=100, help="games per generator measurement in eval")
-    ap.add_argument("--eval-games", type=int, default=300, help="games measuring each final skill")
+    ap.add_argument("--chunk", type=whole_number(1), default=4,
+                    help="updates per jitted chunk (progress/checkpoint period)")
+    ap.add_argument("--max-chunks", type=whole_number(1), help="stop (after a checkpoint) once this many chunks "
+                    "ran in this invocation")
+    ap.add_argument("--eval-episodes", type=whole_number(1), default=8, help="episodes per target and method")
+    ap.add_argument("--eval-gen-games", type=whole_number(1), default=100,
+                    help="games per generator measurement in eval")
+    ap.add_argument("--eval-games", type=whole_number(1), default=300, help="games measuring each final skill")
     ap.add_argument("--greedy", action="store_true", help="argmax actions in evaluation")
     ap.add_argument("--no-baselines", action="store_true")
     return ap.parse_args(argv)
 
 
-def main(argv=None) -> None:
-    """Train, checkpoint, evaluate; the last stdout line is one JSON object."""
+def main(argv=None) -> dict | None:
+    """Train, checkpoint, evaluate; the last stdout line is one JSON object (also returned)."""
     args = _args(argv)
     t_start = time.perf_counter()
+    check_out(args.out)
     config = get_config(args.preset, total_steps=args.total_steps, n_games=args.n_games, n_arenas=args.n_arenas,
                         lr=args.lr, edit_cost=args.edit_cost, pool_repeats=args.pool_repeats,
                         ent_coef=args.ent_coef, goal_cost=args.goal_cost, goal_axis=args.goal_axis)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write(out / "config.json", json.dumps({**vars(args), "config": config.to_dict()}, default=str, indent=1))
+    evaluation = {k: getattr(args, k) for k in ("eval_episodes", "eval_gen_games", "eval_games", "greedy",
+                                                "no_baselines")}
+    settings = {"trainer": "ppo_pcgrl", "preset": args.preset, "seeds": args.seeds, "seed": args.seed,
+                "chunk": args.chunk, "config": config.to_dict(), "evaluation": evaluation}
+    rf = RunFolder(args.out, settings, resume=args.resume, ignore=("evaluation",))
+    if rf.finished:
+        return rf.already_finished()
+    out = rf.out
     train = make_train(config)
     pairs, labels = target_groups(config, args.seeds)
     G, chunk = len(labels), max(1, args.chunk)
@@ -85,18 +98,19 @@ def main(argv=None) -> None:
 
     ckpt = out / "checkpoints"
     start = 0
-    if args.resume and checkpoint.latest_step(ckpt) is not None:
-        runner, _, meta = checkpoint.restore(ckpt, jax.eval_shape(init_v, keys, tg))
+    if checkpoint.latest_step(ckpt) is not None:  # else a new run, or one stopped before its first checkpoint
+        runner, _, meta = checkpoint.restore(ckpt, jax.eval_shape(init_v, keys, tg), quarantine=True)
         start = int(meta["update"])
-        print(f"resumed from update {start}", flush=True)
+        print(f"resumed from the checkpoint at update {start}", flush=True)
     log = MetricsLog(out, resume_update=start)
     steps_per_update = config.n_arenas * config.n_steps
     total_updates = config.num_updates
     print(f"preset={args.preset} groups={G} updates={total_updates} steps/update={steps_per_update} "
           f"n_games={config.n_games}", flush=True)
     t_train = time.perf_counter()
-    u, done_steps = start, 0
-    while u < total_updates:
+    u, done_steps, chunks_here = start, 0, 0
+    while u < total_updates and (args.max_chunks is None or chunks_here < args.max_chunks):
+        chunks_here += 1
         t0 = time.perf_counter()
         runner, metrics = run_chunk(runner, tg)
         jax.block_until_ready(runner)
@@ -116,12 +130,15 @@ def main(argv=None) -> None:
               f"final_err {last('final_error'):.3f} edits {last('edits'):.1f} "
               f"entropy {np.mean(m['entropy'][:, -1]):.2f}", flush=True)
     train_s = time.perf_counter() - t_train
+    if u < total_updates:
+        print(f"stopped at update {u}/{total_updates} (--max-chunks); rerun with --resume to continue", flush=True)
+        return {"stopped_at_update": u}
     t_eval = time.perf_counter()
     gens = evaluate(jax.random.key(args.seed + 1), config, runner["params"], labels, gen_games=args.eval_gen_games,
                     greedy=args.greedy, episodes=args.eval_episodes, eval_games=args.eval_games,
                     baselines=not args.no_baselines)
     summ = pcg.metrics.summarize(gens)
-    atomic_write(out / "eval.json", json.dumps(summ, indent=1))
+    atomic_write(out / "eval.json", finite_json(summ, indent=1))
     for name, s in summ.items():
         c = s["controllability"]
         print(f"{name}: mean error {c['err_mean']:.3f} ± {c['err_sd']:.3f} (n={c['n']}) yield {s['yield']:.2f} "
@@ -135,11 +152,17 @@ def main(argv=None) -> None:
            "seconds": time.perf_counter() - t_start, "preset": args.preset, "seeds": args.seeds,
            "total_steps": total_updates * steps_per_update, "groups": G, "n_games": config.n_games,
            "cpu_count": os.cpu_count()}
+    res = json.loads(finite_json(res))  # NaN as null: valid JSON
+    atomic_write(out / "result.json", json.dumps(res, indent=1))
     print(json.dumps(res), flush=True)
+    return res
+
+
+def cli(argv=None) -> None:
+    """``main`` as a command line: one-line errors (exit 2), one line on Ctrl-C (exit 130)."""
+    run_cli(lambda: main(argv), (ValueError, checkpoint.CheckpointError),
+            "the newest checkpoint is kept: rerun the same command with --resume to continue")
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except ValueError as e:
-        raise SystemExit(f"error: {e}") from e
+    cli()

@@ -1,0 +1,203 @@
+"""The run folder of every long job (both trainers, both benchmark pipelines): one contract.
+
+- The settings are recorded in ``config.json`` on the first start. A rerun must pass ``--resume``
+  (an existing run is never silently restarted) and must have the same settings (a mismatch is
+  refused, naming every differing setting with both values); ``--resume`` on a folder that holds
+  no run is refused too. A finished run (``summary.json``/``result.json`` present) resumed is a
+  no-op that says so.
+- Every file is written atomically (``raidjax.utils.atomic_write``); metrics rows past the
+  checkpoint resumed from are dropped (``trainers.metrics``); checkpoints are verified on restore
+  (``trainers.checkpoint``).
+
+Layout of ``DIR`` (the pipelines use all of it, the trainers the first lines)::
+
+    config.json     every setting of the run (a rerun must match it)
+    log.txt         timestamped progress lines (also printed)
+    stages/*.json   one file per finished stage: its JSON result; a rerun skips finished stages
+                    (stages/seconds.json: each finished stage's wall seconds)
+    csv/*.csv       every number the run measured
+    tables/*.md     the tables, our numbers beside the paper's
+    figures/*.png   the figures
+    checkpoints/    learner checkpoints (orbax)
+    summary.json    the final summary (also the last stdout line)
+
+Every file is written to a temporary name and renamed into place, so an interrupted run never
+leaves a half-written file: rerunning the same command with ``--resume`` resumes after the last
+finished stage.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from raidjax.utils import atomic_write, finite_json, fmt_seconds, machine
+
+
+class RunFolderError(ValueError):
+    """A run folder refused: the message names the folder and what to do."""
+
+
+def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:
+    """``"key: saved X, now Y"`` for every (nested) setting that differs."""
+    out = []
+    for k in sorted(set(old) | set(new)):
+        a, b = old.get(k), new.get(k)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += _differences(a, b, f"{prefix}{k}.")
+        elif a != b:
+            out.append(f"{prefix}{k}: saved {json.dumps(a)}, now {json.dumps(b)}")
+    return out
+
+
+def check_out(out: str | Path, flag: str = "--out") -> Path:
+    """``out`` as a folder path, refusing an existing file (``RunFolderError`` naming ``flag``)."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise RunFolderError(f"{flag}: {out} is a file; allowed: a folder (new or holding a run)")
+    return out
+
+
+class RunFolder:
+    """The run folder ``out`` of one job.
+
+    Args:
+        out: the folder (created).
+        config: JSON-able settings of the run, recorded in ``out/config.json`` on the first start.
+        resume: continue the run in ``out``. Without it an ``out`` holding a run is refused; with
+            it an ``out`` holding none is refused, and so are other settings than the recorded ones.
+        ignore: top-level settings a resumed run may change (e.g. the size of the final
+            evaluation); the recorded value is replaced by the new one.
+
+    Attributes:
+        resumed: whether a run was found and is being continued.
+        finished: whether that run had already finished (``summary.json`` or ``result.json``).
+
+    Raises:
+        RunFolderError: the cases above, each in one line naming the folder and what to do.
+    """
+
+    def __init__(self, out: str | Path, config: dict, resume: bool = False, ignore: tuple[str, ...] = ()):
+        self.out = check_out(out)
+        self.t0 = time.perf_counter()
+        cfg_path = self.out / "config.json"
+        config = json.loads(json.dumps(config))
+        self.resumed = cfg_path.exists()
+        if self.resumed and not resume:
+            raise RunFolderError(f"{self.out} already holds a run: pass --resume to continue it, or choose a new --out")
+        if not self.resumed and resume:
+            raise RunFolderError(f"--resume: {self.out} holds no run to resume (no config.json); "
+                                 "drop --resume to start one")
+        if self.resumed:
+            try:
+                old = json.loads(cfg_path.read_text())
+            except json.JSONDecodeError as e:
+                raise RunFolderError(f"{cfg_path} is not valid JSON ({e}); the run cannot be resumed") from e
+            diff = _differences({k: v for k, v in old.items() if k not in ignore},
+                                {k: v for k, v in config.items() if k not in ignore})
+            if diff:
+                raise RunFolderError(f"{self.out} holds a run with other settings ({'; '.join(diff)}): "
+                                     "rerun its own command with --resume, or choose a new --out")
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.finished = self.resumed and any((self.out / n).exists() for n in ("summary.json", "result.json"))
+        if not self.resumed or any(config.get(k) != old.get(k) for k in ignore):
+            atomic_write(cfg_path, json.dumps(config, indent=1))
+        self.config = config
+        if self.resumed:
+            self.log(f"resuming the {'finished ' if self.finished else ''}run in {self.out}")
+
+    def path(self, *parts: str) -> Path:
+        """``out/parts...`` with its parent folder created."""
+        p = self.out.joinpath(*parts)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        return p
+
+    def log(self, msg: str, quiet: bool = False) -> None:
+        """Print ``msg`` (unless ``quiet``) and append it with a timestamp to ``log.txt``."""
+        line = f"[{time.strftime('%H:%M:%S')} +{fmt_seconds(time.perf_counter() - self.t0)}] {msg}"
+        if not quiet:
+            print(line, flush=True)
+        with open(self.out / "log.txt", "a") as f:
+            f.write(line + "\n")
+
+    def done(self, name: str) -> bool:
+        """Whether stage ``name`` has finished (its result is on disk)."""
+        return (self.out / "stages" / f"{name}.json").exists()
+
+    def stage(self, name: str, fn: Callable[[], Any]) -> Any:
+        """Run ``fn()`` once: return its stored JSON result if stage ``name`` already finished,
+        otherwise run it, store the (JSON-able) result atomically and return it."""
+        p = self.out / "stages" / f"{name}.json"
+        if p.exists():
+            self.log(f"stage {name}: already done, skipped")
+            return json.loads(p.read_text())
+        t = time.perf_counter()
+        self.log(f"stage {name}: start")
+        result = fn()
+        seconds = time.perf_counter() - t
+        atomic_write(self.path("stages", f"{name}.json"), finite_json(result, indent=1))
+        timings = self.stage_seconds()
+        timings[name] = seconds
+        atomic_write(self.out / "stages" / "seconds.json", json.dumps(timings, indent=1))
+        self.log(f"stage {name}: done in {fmt_seconds(seconds)}")
+        return json.loads(finite_json(result))
+
+    def stage_seconds(self) -> dict:
+        """Wall seconds of every finished stage (of the invocation that finished it)."""
+        p = self.out / "stages" / "seconds.json"
+        return json.loads(p.read_text()) if p.exists() else {}
+
+    def write_csv(self, name: str, rows: Sequence[dict]) -> Path:
+        """Write ``rows`` (dicts with the same keys) to ``csv/<name>.csv``."""
+        buf = io.StringIO()
+        if rows:
+            w = csv.DictWriter(buf, list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+        return atomic_write(self.path("csv", f"{name}.csv"), buf.getvalue())
+
+    def write_table(self, name: str, markdown: str) -> Path:
+        """Write a Markdown table (or section) to ``tables/<name>.md``."""
+        return atomic_write(self.path("tables", f"{name}.md"), markdown.rstrip() + "\n")
+
+    def save_figure(self, name: str, fig, dpi: int = 90) -> Path:
+        """Save a matplotlib figure as ``figures/<name>.png`` (atomically) and close it."""
+        import matplotlib.pyplot as plt
+
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+        plt.close(fig)
+        return atomic_write(self.path("figures", f"{name}.png"), buf.getvalue())
+
+    def already_finished(self) -> dict:
+        """For a finished run resumed: say so, print its stored summary (or result) as the last
+        line and return it; nothing is recomputed or rewritten."""
+        name = "summary.json" if (self.out / "summary.json").exists() else "result.json"
+        summary = json.loads((self.out / name).read_text())
+        self.log(f"this run has already finished: nothing to do ({self.out / name} unchanged)")
+        print(finite_json(summary), flush=True)
+        return summary
+
+    def finish(self, summary: dict) -> dict:
+        """Write ``summary.json`` (with the machine, the wall seconds of each stage and their sum)
+        and print it as the last line."""
+        stages = self.stage_seconds()
+        summary = {**summary, "machine": machine(), "stage_seconds": stages, "seconds": sum(stages.values()),
+                   "seconds_this_invocation": time.perf_counter() - self.t0}
+        atomic_write(self.out / "summary.json", finite_json(summary, indent=1))
+        self.log("finished")
+        print(finite_json(summary), flush=True)
+        return summary
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """A Markdown table; floats are printed with 3 decimals."""
+    fmt = lambda v: f"{v:.3f}" if isinstance(v, float) else str(v)
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(fmt(v) for v in r) + " |" for r in rows]
+    return "\n".join(lines)

@@ -4,6 +4,7 @@ tiny end-to-end run with a checkpoint round-trip (no timing assertions)."""
 from __future__ import annotations
 
 import json
+import re
 
 import flax.linen as nn
 import jax
@@ -294,3 +295,14 @@ def test_range_table_tiles_sets_uniformly():
     assert t.shape == (60,) and np.all(np.unique(t, return_counts=True)[1] == 12)
     with pytest.raises(ValueError, match="skill_ranges: 5 values"):
         range_table((1.0, 2.0, 3.0, 4.0, 5.0), size=RANGE_TABLE)
+
+
+@pytest.mark.parametrize("field,value,allowed", [
+    ("n_arenas", 0, "a whole number >= 1"), ("lr", "1e-3", "a number"), ("anneal_lr", 1, "true or false"),
+    ("total_steps", True, "a whole number"), ("gamma", 1.5, "a number in [0, 1]"), ("lr", 0.0, "a number > 0"),
+    ("skill_ranges", "13", "a non-empty list of numbers in [1, 20]"), ("skill_ranges", [], "a non-empty list"),
+    ("eval_games", -1, "a whole number >= 0"), ("ent_coef", float("nan"), "a number")])
+def test_config_rejects_wrong_types_and_values_naming_the_field(field, value, allowed):
+    with pytest.raises(ValueError, match=f"^{field}: value {re.escape(repr(value))}.*allowed: {re.escape(allowed)}"):
+        Config().replace(**{field: value})
+    assert Config().replace(skill_ranges=[9, 13]).skill_ranges == (9.0, 13.0)  # JSON ints are fine

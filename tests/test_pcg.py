@@ -96,11 +96,13 @@ def test_observation_modes():
 
 
 
-@pytest.mark.parametrize("field,value", [("edit_cost", -0.5), ("goal_cost", -0.1), ("n_minibatches", 3)])
+@pytest.mark.parametrize("field,value", [("edit_cost", -0.5), ("goal_cost", -0.1), ("n_minibatches", 3),
+                                         ("n_games", 0), ("gamma", 1.5), ("lr", "1e-3"), ("pool_repeats", 1),
+                                         ("total_steps", True), ("lr", float("nan"))])
 def test_ppo_config_rejects_bad_values_naming_the_field(field, value):
     from trainers.ppo_pcgrl import get_config
 
-    with pytest.raises(ValueError, match=f"{field}: value {value}"):
+    with pytest.raises(ValueError, match=f"^{field}: value {value!r}"):
         get_config("cpu", **{field: value})
 
 

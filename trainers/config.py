@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 
@@ -83,10 +84,23 @@ class Config:
         """Jitted chunks per run."""
         return self.num_updates // self.updates_per_chunk
 
+    def __post_init__(self):
+        check_fields(self, {
+            **dict.fromkeys(("n_arenas", "n_steps", "n_minibatches", "update_epochs", "hidden", "layers", "heads",
+                             "redraw_every", "total_steps", "updates_per_chunk", "checkpoint_every"), (1, None)),
+            "eval_games": (0, None), "lr": (0, None, "> 0"), "adam_eps": (0, None, "> 0"),
+            "max_grad_norm": (0, None), "gamma": (0, 1), "lam": (0, 1), "clip_eps": (0, None, "> 0"),
+            "ent_coef": (0, None)})
+        ranges = self.skill_ranges
+        if (isinstance(ranges, str | bytes) or not hasattr(ranges, "__len__") or not len(ranges)
+                or not all(_number(r) and 1 <= r <= 20 for r in ranges)):
+            raise ValueError(f"skill_ranges: value {ranges!r}; allowed: a non-empty list of numbers in [1, 20]")
+        object.__setattr__(self, "skill_ranges", tuple(float(r) for r in ranges))  # JSON lists -> hashable
+        if self.hidden % self.heads:
+            raise ValueError(f"heads: value {self.heads} must divide hidden = {self.hidden}")
+
     def replace(self, **kw) -> Config:
-        """A copy with fields changed (lists become tuples); unknown fields raise ``TypeError``."""
-        if "skill_ranges" in kw:
-            kw["skill_ranges"] = tuple(float(r) for r in kw["skill_ranges"])
+        """A copy with fields changed (checked again); unknown fields raise ``TypeError``."""
         return dataclasses.replace(self, **kw)
 
     def to_dict(self) -> dict:
@@ -99,6 +113,37 @@ class Config:
     def from_dict(cls, d: dict) -> Config:
         """Inverse of ``to_dict``; raises ``ValueError`` naming unknown keys."""
         return cls().replace(**known_fields(cls, d))
+
+
+def _number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def check_fields(obj, bounds: dict[str, tuple]) -> None:
+    """Check every field of the dataclass ``obj`` against its annotated type (``int``, ``float``,
+    ``bool``; no string or bool coercion) and ``bounds``: ``name -> (low, high[, wording])`` with
+    ``None`` for no bound and an exclusive low when the wording says ``"> low"``.
+
+    Raises:
+        ValueError: ``"<field>: value <v!r> ...; allowed: ..."``, one line.
+    """
+    for f in dataclasses.fields(obj):
+        v, kind = getattr(obj, f.name), str(f.type)
+        ok = {"int": isinstance(v, int) and not isinstance(v, bool), "float": _number(v),
+              "bool": isinstance(v, bool)}.get(kind, True)
+        if not ok:
+            raise ValueError(f"{f.name}: value {v!r} ({type(v).__name__}); allowed: {kind_word(kind)}")
+        if f.name in bounds:
+            low, high, *wording = bounds[f.name]
+            exclusive = bool(wording) and wording[0].startswith(">")
+            if (low is not None and (v <= low if exclusive else v < low)) or (high is not None and v > high):
+                allowed = wording[0] if wording else (f">= {low}" if high is None else f"in [{low}, {high}]")
+                raise ValueError(f"{f.name}: value {v!r}; allowed: {kind_word(kind)} {allowed}")
+
+
+def kind_word(kind: str) -> str:
+    """``"int"`` -> ``"a whole number"``, ``"float"`` -> ``"a number"``, ``"bool"`` -> ``"true or false"``."""
+    return {"int": "a whole number", "float": "a number", "bool": "true or false"}.get(kind, kind)
 
 
 def known_fields(cls, d: dict) -> dict:
@@ -158,12 +203,17 @@ def load_config(preset: str = "cpu", path: str | Path | None = None, **overrides
     """Preset, then the JSON file at ``path`` (a dict of fields), then ``overrides`` (None skipped).
 
     Raises:
-        ValueError: unknown preset or unknown keys in the file.
+        ValueError: unknown preset, an unreadable file, unknown keys or bad values (one line each).
     """
     if preset not in PRESETS:
         raise ValueError(f"preset: unknown {preset!r}; known: {sorted(PRESETS)}")
     cfg = PRESETS[preset]
     if path is not None:
-        data = json.loads(Path(path).read_text())
+        try:
+            data = json.loads(Path(path).read_text())
+        except (OSError, json.JSONDecodeError) as e:
+            raise ValueError(f"config: cannot read {path} as a JSON object of Config fields ({e})") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"config: {path} holds a {type(data).__name__}; allowed: a JSON object of Config fields")
         cfg = cfg.replace(**Config.from_dict({**cfg.to_dict(), **data}).to_dict())
     return cfg.replace(**{k: v for k, v in overrides.items() if v is not None})

@@ -20,7 +20,7 @@ import numpy as np
 import optax
 
 from raidjax import pcg
-from trainers.config import known_fields
+from trainers.config import check_fields, known_fields
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,20 +62,21 @@ class PPOConfig:
     goal_cost: float = 0.0
 
     def __post_init__(self):
+        check_fields(self, {
+            **dict.fromkeys(("n_arenas", "n_steps", "total_steps", "update_epochs", "n_minibatches", "n_games",
+                             "max_edits"), (1, None)),
+            **dict.fromkeys(("lr", "clip_eps", "reward_scale"), (0, None, "> 0")),
+            "gamma": (0, 1), "lam": (0, 1),
+            **dict.fromkeys(("ent_coef", "vf_coef", "max_grad_norm", "edit_cost", "goal_cost"), (0, None))})
         if self.goal_axis is not None:  # JSON gives a list; the env needs a hashable static field
             object.__setattr__(self, "goal_axis", pcg.check_axis(self.goal_axis))
         if (self.goal_axis is None) != (self.goal_cost == 0):
             raise ValueError(f"goal_cost: value {self.goal_cost} with goal_axis {self.goal_axis}: a style goal "
                              "needs both (goal_cost > 0 and an axis such as (1, 1, 1, 1)), or neither")
         batch = self.n_arenas * self.n_steps
-        for name, allowed, ok in (
-                ("edit_cost", ">= 0", self.edit_cost >= 0), ("goal_cost", ">= 0", self.goal_cost >= 0),
-                ("ent_coef", ">= 0", self.ent_coef >= 0), ("lr", "> 0", self.lr > 0),
-                ("n_games", ">= 1", self.n_games >= 1),
-                ("n_minibatches", f"a divisor of n_arenas * n_steps = {batch}",
-                 self.n_minibatches >= 1 and batch % self.n_minibatches == 0)):
-            if not ok:
-                raise ValueError(f"{name}: value {getattr(self, name)} must be {allowed}")
+        if batch % self.n_minibatches:
+            raise ValueError(f"n_minibatches: value {self.n_minibatches}; allowed: a divisor of n_arenas * n_steps "
+                             f"= {batch}")
 
     @property
     def num_updates(self) -> int:

@@ -1,8 +1,10 @@
 """Building and validating content (``Params``): field ranges, defaults and ``make_params``.
 
 Validation happens here, on the host, when parameters are built: out-of-range, NaN, wrongly
-shaped or unknown content raises ``ValueError`` naming the field, the value and the allowed
-range. The jitted step never clips content silently.
+shaped or unknown content, and values of the wrong Python type (a ``str`` or ``bool`` for a
+number, ``None``, a list for a scalar), raise a one-line ``ValueError`` naming the field, the
+value and what is allowed (helpers in ``raidjax.validate``). The jitted step never clips content
+silently.
 """
 
 from __future__ import annotations
@@ -13,8 +15,8 @@ from dataclasses import fields
 import jax.numpy as jnp
 import numpy as np
 
-from raidjax import catalogue
-from raidjax.types import N_SLOTS, RULE_SWITCHES, EnvConfig, Params, Skills, Stats
+from raidjax import catalogue, validate
+from raidjax.types import N_SLOTS, EnvConfig, Params, Skills, Stats
 
 # name: (kind, player range, boss range, player default, boss default).
 # kind "int" values must be whole numbers. Neutral values reproduce the reference game.
@@ -75,10 +77,7 @@ REFERENCE_PLAYERS = ("mage", "mage", "mage")
 
 
 def _unit_dicts(cls_name: str, table: Mapping, team: int) -> tuple[dict, list[dict]]:
-    if cls_name not in table:
-        what = "player class" if team == 0 else "boss"
-        raise ValueError(f"unknown {what} preset {cls_name!r}; known: {sorted(table)}")
-    preset = table[cls_name]
+    preset = table[cls_name]  # the name was checked by make_params
     col = 3 if team == 0 else 4
     stats = {k: spec[col] for k, spec in STAT_SPECS.items()}
     stats.update(preset["stats"])
@@ -88,26 +87,75 @@ def _unit_dicts(cls_name: str, table: Mapping, team: int) -> tuple[dict, list[di
     return stats, slots
 
 
-def _apply_override(key: str, value, stats: dict, slots: list[dict], who: str) -> None:
+def _number(field: str, value, spec: tuple, team: int, who: str) -> float:
+    """``value`` as a float if it is a real number (0/1 flags may be ``bool``), else one line naming
+    ``field``, the value and the allowed range of ``spec`` for ``team`` (0 players, 1 the boss)."""
+    kind, (lo, hi) = spec[0], spec[1 + team]
+    allowed = {"float": f"a number in [{lo}, {hi}]", "int": f"a whole number in [{lo}, {hi}]"}
+    allowed = allowed.get(kind, "0 or 1 (or a bool)")
+    try:
+        return validate.number(field, value, allowed, allow_bool=kind == "bool")
+    except ValueError:
+        if who == "make_params":
+            raise
+        raise validate.fail(field, value, allowed, f"{validate.kind_of(value)} in {who}") from None
+
+
+def _apply_override(key: str, value, stats: dict, slots: list[dict], who: str, team: int = 0) -> None:
+    if not isinstance(key, str):
+        raise validate.fail(f"{who}: key", key, "a field name (a str)")
     if key in STAT_SPECS:
-        stats[key] = value
+        stats[key] = _number(key, value, STAT_SPECS[key], team, who)
         return
     head, _, field = key.partition(".")
     if head.startswith("skill") and head[5:].isdigit() and field in SKILL_SPECS:
         k = int(head[5:])
         if not 1 <= k <= N_SLOTS:
             raise ValueError(f"{who}: override {key!r}: skill slot {k} not in [1, {N_SLOTS}]")
-        slots[k - 1][field] = value
+        slots[k - 1][field] = _number(key, value, SKILL_SPECS[field], team, who)
         return
-    if isinstance(value, str) and head.startswith("skill") and not field:
-        k = int(head[5:]) if head[5:].isdigit() else 0
-        if 1 <= k <= N_SLOTS:
-            slots[k - 1] = catalogue.skill_fields(value)
-            return
+    if head.startswith("skill") and head[5:].isdigit() and not field and 1 <= int(head[5:]) <= N_SLOTS:
+        slots[int(head[5:]) - 1] = catalogue.skill_fields(validate.name(key, value, catalogue.SKILLS, "skill preset"))
+        return
+    if key in {f.name for f in fields(EnvConfig)}:
+        raise ValueError(f"{who}: unknown field {key!r} (value {validate.show(value)}); it is an EnvConfig "
+                         f"field: pass config=raidjax.EnvConfig({key}=...)")
     raise ValueError(
-        f"{who}: unknown field {key!r}; use a stat ({', '.join(STAT_SPECS)}), "
+        f"{who}: unknown field {key!r} (value {validate.show(value)}); use a stat ({', '.join(STAT_SPECS)}), "
         f"'skill<k>.<param>' with param in ({', '.join(SKILL_SPECS)}), or 'skill<k>' = a skill preset"
     )
+
+
+def _names(players) -> list[str]:
+    """The class preset names of ``players`` (a name means a team of 3), checked."""
+    allowed = f"a class preset name or a list of 1 to 8 of them, from {sorted(catalogue.CLASSES)}"
+    if isinstance(players, str):
+        return [validate.name("players", players, catalogue.CLASSES, "class preset")] * 3
+    if not isinstance(players, Sequence):
+        raise validate.fail("players", players, allowed)
+    if not 1 <= len(players) <= 8:
+        raise validate.fail("players", players, allowed, f"{len(players)} players")
+    return [validate.name(f"players[{i}]", n, catalogue.CLASSES, "class preset") for i, n in enumerate(players)]
+
+
+def _override_maps(player_overrides, boss_overrides, n_players: int) -> tuple[list[Mapping], Mapping]:
+    """``player_overrides`` (``None`` or one mapping per player) and ``boss_overrides`` (``None`` or a
+    mapping), checked; ``None`` becomes empty mappings."""
+    allowed = f"None or a list of {n_players} mappings (one per player) of field overrides"
+    if player_overrides is None:
+        per_player = [{}] * n_players
+    elif isinstance(player_overrides, str | Mapping) or not isinstance(player_overrides, Sequence):
+        raise validate.fail("player_overrides", player_overrides, allowed)
+    elif len(player_overrides) != n_players:
+        raise validate.fail("player_overrides", player_overrides, allowed, f"{len(player_overrides)} mappings")
+    else:
+        per_player = list(player_overrides)
+    for i, m in enumerate(per_player):
+        if not isinstance(m, Mapping):
+            raise validate.fail(f"player_overrides[{i}]", m, "a mapping of field overrides, e.g. {'armor': 50}")
+    if boss_overrides is not None and not isinstance(boss_overrides, Mapping):
+        raise validate.fail("boss_overrides", boss_overrides, "None or a mapping of field overrides, e.g. {'armor': 5}")
+    return per_player, boss_overrides or {}
 
 
 def make_params(
@@ -141,16 +189,20 @@ def make_params(
         ``Params`` with stats ``[U]`` and skills ``[U, 3]``, ``U = n_players + 1``.
 
     Raises:
-        ValueError: unknown preset or field, or a value that is NaN, not a whole number where
-            one is required, or outside its allowed range (the message names all three).
+        ValueError: one line naming the field, the value and what is allowed, on the host before
+            anything compiles: an unknown preset, field or rule set; a value of the wrong type
+            (numbers are Python ``int``/``float`` or 0-d numpy/JAX numbers, never a ``str``,
+            ``bool``, ``None`` or list; ``players`` a name or a list of names; ``boss`` a name;
+            ``player_overrides`` a list of mappings; ``boss_overrides`` a mapping; ``config`` an
+            ``EnvConfig``); a value that is NaN, not a whole number where one is required, or
+            outside its allowed range.
     """
-    names = [players] if isinstance(players, str) else list(players)
-    if isinstance(players, str):
-        names = names * 3
-    if not 1 <= len(names) <= 8:
-        raise ValueError(f"players: {len(names)} players given; allowed range [1, 8]")
-    if player_overrides is not None and len(player_overrides) != len(names):
-        raise ValueError(f"player_overrides: {len(player_overrides)} mappings for {len(names)} players")
+    names = _names(players)
+    validate.name("boss", boss, catalogue.BOSSES, "boss preset")
+    per_player, boss_map = _override_maps(player_overrides, boss_overrides, len(names))
+    if skill_range is not None:
+        skill_range = _number("skill_range", skill_range, SKILL_SPECS["range"], 0, "make_params")
+    config = check_config(EnvConfig() if config is None else config, rules)
     units = []
     for i, name in enumerate(names):
         stats, slots = _unit_dicts(name, catalogue.CLASSES, 0)
@@ -158,12 +210,12 @@ def make_params(
             slots[0]["range"] = skill_range
         for key, value in overrides.items():
             _apply_override(key, value, stats, slots, "make_params")
-        for key, value in (player_overrides[i] if player_overrides else {}).items():
+        for key, value in per_player[i].items():
             _apply_override(key, value, stats, slots, f"player_overrides[{i}]")
         units.append((stats, slots))
     stats, slots = _unit_dicts(boss, catalogue.BOSSES, 1)
-    for key, value in (boss_overrides or {}).items():
-        _apply_override(key, value, stats, slots, "boss_overrides")
+    for key, value in boss_map.items():
+        _apply_override(key, value, stats, slots, "boss_overrides", team=1)
     units.append((stats, slots))
 
     stat_arrays = {k: np.array([u[0][k] for u in units], dtype=np.float64) for k in STAT_SPECS}
@@ -175,35 +227,29 @@ def make_params(
         stats=Stats(**{k: jnp.asarray(v, jnp.float32) for k, v in stat_arrays.items()}),
         skills=Skills(**{k: jnp.asarray(v, _dtype(SKILL_SPECS[k][0])) for k, v in skill_arrays.items()}),
         team=jnp.asarray(team),
-        config=check_config(config or EnvConfig(), rules),
+        config=config,
     )
     validate_params(params, _raw=(stat_arrays, skill_arrays))
     return params
 
 
 def check_config(config: EnvConfig, rules: str | None = None) -> EnvConfig:
-    """Validate ``config`` (and apply the named ``rules``) on the host, before anything compiles.
+    """Check that ``config`` is an ``EnvConfig`` and apply the named ``rules``, on the host, before
+    anything compiles. Its fields were validated when it was built (``EnvConfig.__post_init__``).
+
+    Args:
+        config: an ``EnvConfig``. rules: ``None`` or a rule set name (``RULE_SETS``).
+
+    Returns:
+        The ``EnvConfig``, with every rule switch set as in ``rules`` when given.
 
     Raises:
-        ValueError: naming the field, the value and what is allowed.
+        ValueError: ``config`` is not an ``EnvConfig`` or ``rules`` not a rule set (one line naming
+            the field, the value and what is allowed).
     """
     if not isinstance(config, EnvConfig):
-        raise ValueError(f"config: value {config!r} is not an EnvConfig")
-    if rules is not None:
-        config = config.with_rules(rules)  # raises naming the allowed rule sets
-    if config.n_substeps not in (1, 5):
-        raise ValueError(f"n_substeps: value {config.n_substeps!r}; allowed 1 or 5 (sub-steps per 5-tick decision)")
-    for name in ("max_projectiles", "obs_projectiles", "max_decisions"):
-        v = getattr(config, name)
-        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-            raise ValueError(f"{name}: value {v!r} must be a whole number >= 1")
-    if config.obs_projectiles > config.max_projectiles:
-        raise ValueError(f"obs_projectiles: value {config.obs_projectiles} exceeds max_projectiles "
-                         f"{config.max_projectiles}")
-    for name in RULE_SWITCHES:
-        if not isinstance(getattr(config, name), bool):
-            raise ValueError(f"{name}: value {getattr(config, name)!r} must be True or False")
-    return config
+        raise validate.fail("config", config, "None or an EnvConfig (EnvConfig(...), EnvConfig.from_rules(...))")
+    return config if rules is None else config.with_rules(rules)
 
 
 def _dtype(kind: str):

@@ -1,19 +1,59 @@
-"""Batched playtesting: many games in parallel on-device, stopping once every game ended."""
+"""Batched playtesting: many games in parallel on-device, stopping once every game ended.
+
+The public functions check their arguments in plain Python first (``n_games`` a whole number
+>= 1, ``params`` a ``Params`` whose batch fits ``n_games``, ``policy`` a hashable function) and
+raise a one-line ``ValueError`` before anything is traced or compiled; the jitted programs behind
+them are cached by ``(policy, n_games)`` as before.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from functools import partial
 
 import jax
 import jax.numpy as jnp
 
+from raidjax import validate
 from raidjax.env import next_episode, reset, step
 from raidjax.logs import HEATMAP_BINS, episode_summary, grid_cell
 from raidjax.observation import observe
 from raidjax.types import RUNNING, Params
 
 Policy = Callable  # policy(key, obs, state, params) -> int32[P]
+
+
+def check_args(params: Params, n_games, policy: Policy | None = None) -> int:
+    """Check the arguments of a playtest on the host, before anything is traced or compiled.
+
+    Args:
+        params: ``Params``, unbatched or with one batch axis (see ``broadcast_params``).
+        n_games: a whole number >= 1 (a Python or numpy integer; not a ``bool``, ``float`` or ``str``).
+        policy: if given, a hashable callable (it is a static argument of the jitted playtest).
+
+    Returns:
+        ``n_games`` as a Python ``int`` (so ``5`` and ``np.int64(5)`` share one compilation).
+
+    Raises:
+        ValueError: one line naming the argument, the value and what is allowed.
+    """
+    n = validate.whole_number("n_games", n_games, 1)
+    if not isinstance(params, Params):
+        raise validate.fail("params", params, "a raidjax.Params (raidjax.make_params(...))")
+    nb = params.team.ndim - 1
+    if nb not in (0, 1):
+        raise ValueError(f"params: {nb} batch axes; playtest takes at most one")
+    if nb == 1 and n % params.team.shape[0]:
+        raise ValueError(f"n_games: value {n} is not a multiple of the {params.team.shape[0]} contents in params")
+    if policy is not None:
+        allowed = "a hashable function policy(key, obs, state, params) -> int32[P], e.g. raidjax.policies.heuristic"
+        try:
+            hash(policy)
+        except TypeError:
+            raise validate.fail("policy", policy, allowed, "unhashable") from None
+        if not callable(policy):
+            raise validate.fail("policy", policy, allowed)
+    return n
 
 
 def broadcast_params(params: Params, n_games: int) -> Params:
@@ -23,19 +63,19 @@ def broadcast_params(params: Params, n_games: int) -> Params:
         params: unbatched (``team: [U]``), one content per game (``[n_games, U]``), or one content
             per group of games (``[G, U]`` with ``n_games % G == 0``: game ``g`` uses content
             ``g // (n_games // G)``).
+        n_games: a whole number >= 1.
 
     Returns:
         ``Params`` with every leaf's leading axis ``n_games``.
+
+    Raises:
+        ValueError: as ``check_args`` (``n_games`` not a whole number >= 1 or not a multiple of the
+            contents, more than one batch axis).
     """
-    nb = params.team.ndim - 1
-    if nb == 0:
+    n_games = check_args(params, n_games)
+    if params.team.ndim == 1:
         return jax.tree.map(lambda x: jnp.broadcast_to(x, (n_games,) + x.shape), params)
-    if nb != 1:
-        raise ValueError(f"params: {nb} batch axes; playtest takes at most one")
-    g = params.team.shape[0]
-    if n_games % g:
-        raise ValueError(f"n_games: value {n_games} is not a multiple of the {g} contents in params")
-    return jax.tree.map(lambda x: jnp.repeat(x, n_games // g, axis=0), params)
+    return jax.tree.map(lambda x: jnp.repeat(x, n_games // params.team.shape[0], axis=0), params)
 
 
 def _play_until_done(key: jax.Array, state, batch: Params, policy: Policy, n_games: int, fold, acc):
@@ -77,6 +117,11 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_games: int, fol
 
 
 @partial(jax.jit, static_argnames=("policy", "n_games"))
+def _playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> dict[str, jax.Array]:
+    state, _ = _play_games(key, broadcast_params(params, n_games), policy, n_games)
+    return episode_summary(state)
+
+
 def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> dict[str, jax.Array]:
     """Play ``n_games`` games in parallel until every one has ended (win, loss or draw).
 
@@ -91,35 +136,24 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> di
         policy: ``policy(key, obs, state, params) -> int32[P]`` for one arena (e.g.
             ``raidjax.policies.heuristic``); it must be hashable (a function, not a lambda
             rebuilt every call, to avoid recompiling).
-        n_games: number of games (static).
+        n_games: number of games, a whole number >= 1 (static: one compilation per value).
 
     Returns:
         Dict of arrays with leading axis ``n_games``: ``outcome`` int32 (1 win, 2 loss, 3 draw),
         ``length`` int32 (decisions), ``damage`` float32[n, P] (to the boss), ``back_attacks``
         int32[n, P], ``deaths`` int32 (players dead at the end), ``alive`` bool[n, P],
         ``dropped`` int32 (projectiles dropped), ``boss_hp`` float32.
+
+    Raises:
+        ValueError: before anything compiles, as ``check_args``: ``n_games`` not a whole number
+            >= 1 (``0``, ``-1``, ``2.5``, ``"3"``, ``True``), ``params`` not ``Params`` or batched
+            wrongly, ``policy`` not a hashable callable.
     """
-    state, _ = _play_games(key, broadcast_params(params, n_games), policy, n_games)
-    return episode_summary(state)
+    return _playtest(key, params, policy, check_args(params, n_games, policy))
 
 
 @partial(jax.jit, static_argnames=("policy", "n_games", "bins"))
-def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int,
-                       bins: int = HEATMAP_BINS) -> jax.Array:
-    """Per-player position occupancy over the games ``playtest`` would play with the same key.
-
-    Counts, at every decision (the reset state included) of every game still running, the cell
-    of each alive player on a ``bins x bins`` grid over the arena (GAME.md §11), without storing
-    traces, so 500 games x 2000 decisions cost no memory.
-
-    Args:
-        key, params, policy, n_games: as ``playtest``.
-        bins: grid size (24 in the paper).
-
-    Returns:
-        ``float32[P, bins, bins]`` indexed ``[player, x_bin, y_bin]``, each player's map summing
-        to 1 (all zeros for a player never counted). Average over axis 0 for the team's map.
-    """
+def _playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int, bins: int) -> jax.Array:
     batch = broadcast_params(params, n_games)
     n_players = batch.team.shape[-1] - 1
 
@@ -133,9 +167,48 @@ def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: 
     return counts / jnp.maximum(counts.sum((1, 2), keepdims=True), 1.0)
 
 
+def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int,
+                       bins: int = HEATMAP_BINS) -> jax.Array:
+    """Per-player position occupancy over the games ``playtest`` would play with the same key.
+
+    Counts, at every decision (the reset state included) of every game still running, the cell
+    of each alive player on a ``bins x bins`` grid over the arena (GAME.md §11), without storing
+    traces, so 500 games x 2000 decisions cost no memory.
+
+    Args:
+        key, params, policy, n_games: as ``playtest``.
+        bins: grid size, a whole number >= 1 (24 in the paper; static).
+
+    Returns:
+        ``float32[P, bins, bins]`` indexed ``[player, x_bin, y_bin]``, each player's map summing
+        to 1 (all zeros for a player never counted). Average over axis 0 for the team's map.
+
+    Raises:
+        ValueError: as ``playtest``, or ``bins`` not a whole number >= 1.
+    """
+    n_games = check_args(params, n_games, policy)
+    return _playtest_occupancy(key, params, policy, n_games, validate.whole_number("bins", bins, 1))
+
+
 def win_rate(results: dict[str, jax.Array]) -> jax.Array:
-    """Share of wins ``float32[]`` (draws count as losses)."""
-    return jnp.mean(results["outcome"] == 1)
+    """Share of wins (draws count as losses).
+
+    Args:
+        results: what ``playtest`` returns, at least ``outcome`` int32[n] with ``n >= 1``.
+
+    Returns:
+        ``float32[]`` in [0, 1].
+
+    Raises:
+        ValueError: ``results`` has no ``outcome`` array, or an empty one (its mean would be NaN).
+    """
+    outcome = results.get("outcome") if isinstance(results, Mapping) else None
+    if outcome is None or not hasattr(outcome, "shape"):
+        raise validate.fail("results", results, "the dict playtest returns, with an 'outcome' array")
+    if outcome.size == 0:
+        raise ValueError(f"results['outcome']: value of shape {tuple(outcome.shape)} is empty; "
+                         "allowed: the outcomes of n_games >= 1 games")
+    return jnp.mean(outcome == 1)
 
 
 __all__ = ["playtest", "playtest_occupancy", "broadcast_params", "win_rate"]

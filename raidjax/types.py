@@ -8,8 +8,13 @@ static ``EnvConfig`` carried (as non-pytree metadata) inside ``Params``.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+
 import jax
 from flax import struct
+
+from raidjax import validate
 
 # The game's constants (GAME.md §1, §8).
 TICK = 0.02  # physics tick of the reference build (s)
@@ -77,28 +82,65 @@ class EnvConfig:
             fire on the first tick they are below 0 (0.1 s lasts 6 ticks, 1.0 s 51); otherwise a
             timer of T seconds lasts exactly T.
         ties_are_losses: the boss and the last player dying in the same tick is a loss (else a win).
+
+    Raises:
+        ValueError: on construction (``EnvConfig(...)``, ``replace``, ``from_rules``), one line naming
+            the field, the value and what is allowed: ``n_substeps`` not 1 or 5; a pool size or
+            ``max_decisions`` not a whole number >= 1 (``int`` or numpy integer; no ``float``,
+            ``str`` or ``bool``); ``obs_projectiles > max_projectiles``; a rule switch not a
+            ``bool``; an unknown field name.
     """
 
-    n_substeps: int = 5
-    max_projectiles: int = 16
-    obs_projectiles: int = 4
-    max_decisions: int = 2000
-    carry_cooldowns: bool = True
-    keep_dead_target: bool = True
-    reset_exception: bool = True
-    one_step_area: bool = True
-    unity_timers: bool = True
-    ties_are_losses: bool = True
+    # Every field is static (``pytree_node=False``): an ``EnvConfig`` has no leaves, so tree maps
+    # pass it through unchanged and never rebuild it from placeholder leaves.
+    n_substeps: int = struct.field(pytree_node=False, default=5)
+    max_projectiles: int = struct.field(pytree_node=False, default=16)
+    obs_projectiles: int = struct.field(pytree_node=False, default=4)
+    max_decisions: int = struct.field(pytree_node=False, default=2000)
+    carry_cooldowns: bool = struct.field(pytree_node=False, default=True)
+    keep_dead_target: bool = struct.field(pytree_node=False, default=True)
+    reset_exception: bool = struct.field(pytree_node=False, default=True)
+    one_step_area: bool = struct.field(pytree_node=False, default=True)
+    unity_timers: bool = struct.field(pytree_node=False, default=True)
+    ties_are_losses: bool = struct.field(pytree_node=False, default=True)
+
+    def __post_init__(self):
+        """Validate every field on construction (``EnvConfig(...)``, ``replace``, ``from_rules``),
+        on the host, before anything compiles; numpy integers and bools become Python ones.
+
+        Raises:
+            ValueError: one line naming the field, the value and what is allowed.
+        """
+        n = validate.whole_number("n_substeps", self.n_substeps, 1, "1 or 5 (sub-steps per 5-tick decision)")
+        if n not in (1, 5):
+            raise ValueError(f"n_substeps: value {n!r}; allowed: 1 or 5 (sub-steps per 5-tick decision)")
+        fixed = {"n_substeps": n}
+        for name in ("max_projectiles", "obs_projectiles", "max_decisions"):
+            fixed[name] = validate.whole_number(name, getattr(self, name), 1)
+        if fixed["obs_projectiles"] > fixed["max_projectiles"]:
+            raise ValueError(f"obs_projectiles: value {fixed['obs_projectiles']} exceeds max_projectiles "
+                             f"{fixed['max_projectiles']}; allowed: a whole number in [1, max_projectiles]")
+        for name in RULE_SWITCHES:
+            fixed[name] = validate.flag(name, getattr(self, name))
+        for name, value in fixed.items():  # frozen: set through object (hash and == see Python values)
+            object.__setattr__(self, name, value)
 
     @classmethod
     def from_rules(cls, rules: str = "reference", **fields) -> EnvConfig:
-        """The named rule set (``"reference"`` or ``"clean"``), then ``fields`` on top."""
+        """The named rule set (``"reference"`` or ``"clean"``), then ``fields`` on top.
+
+        Raises:
+            ValueError: an unknown rule set, or a field as in ``EnvConfig``.
+        """
         return cls().with_rules(rules).replace(**fields)
 
     def with_rules(self, rules: str) -> EnvConfig:
-        """This config with every rule switch set as in the named rule set; other fields kept."""
-        if rules not in RULE_SETS:
-            raise ValueError(f"rules: value {rules!r} is not a rule set; allowed: {sorted(RULE_SETS)}")
+        """This config with every rule switch set as in the named rule set; other fields kept.
+
+        Raises:
+            ValueError: ``rules`` not a ``str`` naming a rule set of ``RULE_SETS``.
+        """
+        validate.name("rules", rules, RULE_SETS, "rule set")
         return self.replace(**RULE_SETS[rules])
 
     @property
@@ -111,6 +153,27 @@ class EnvConfig:
     def chains_episodes(self) -> bool:
         """Whether an arena's episodes depend on the one before (``next_episode`` differs from ``reset``)."""
         return bool(self.carry_cooldowns or self.reset_exception)
+
+
+def _reject_unknown_fields(cls):
+    """Make ``cls(...)`` (and so ``replace``) raise a one-line ``ValueError`` naming an unknown field
+    and the known ones, instead of ``TypeError: unexpected keyword argument``."""
+    known = [f.name for f in dataclasses.fields(cls)]
+    init = cls.__init__
+
+    @functools.wraps(init)
+    def checked_init(self, *args, **kwargs):
+        bad = next((k for k in kwargs if k not in known), None)
+        if bad is not None:
+            raise ValueError(f"{cls.__name__}: unknown field {bad!r} (value {validate.show(kwargs[bad])}); "
+                             f"allowed fields: {', '.join(known)}")
+        init(self, *args, **kwargs)
+
+    cls.__init__ = checked_init
+    return cls
+
+
+_reject_unknown_fields(EnvConfig)
 
 
 @struct.dataclass
@@ -179,6 +242,11 @@ class Params:
     skills: Skills
     team: jax.Array  # int32[U]: 0 players, 1 boss
     config: EnvConfig = struct.field(pytree_node=False, default_factory=EnvConfig)
+
+    def __post_init__(self):
+        # ``config`` is static metadata: a wrong type would fail deep inside the traced step.
+        if not isinstance(self.config, EnvConfig):
+            raise validate.fail("config", self.config, "an EnvConfig (raidjax.EnvConfig(...) or EnvConfig.from_rules)")
 
 
 @struct.dataclass

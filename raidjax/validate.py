@@ -1,0 +1,140 @@
+"""Host-side checks of user input, shared by ``EnvConfig``, ``make_params`` and ``playtest``.
+
+Every check runs in plain Python before anything is traced or compiled, never coerces a value
+of the wrong type (a ``str``, a ``bool`` for a number, ``None``, a list), and raises a one-line
+``ValueError`` ``"<field>: value <value> is <what it is>; allowed: <what is allowed>"``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import numpy as np
+
+_MAX_SHOWN = 60
+
+
+def show(value) -> str:
+    """``repr(value)`` on one line, at most about 60 characters (arrays and long lists cut)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= _MAX_SHOWN else text[: _MAX_SHOWN - 3] + "..."
+
+
+def kind_of(value) -> str:
+    """What ``value`` is, for messages: ``"None"``, ``"a bool"``, ``"a str"``, ``"a list of length 1"``,
+    ``"an array of shape (2,)"``, ``"a traced value"``, else ``"a <type name>"``."""
+    if value is None:
+        return "None"
+    if isinstance(value, bool | np.bool_):
+        return "a bool"
+    if isinstance(value, jax.core.Tracer):
+        return "a traced value (checks run on the host, outside jit)"
+    shape = getattr(value, "shape", None)
+    if shape is not None and tuple(shape) != ():
+        return f"an array of shape {tuple(shape)}"
+    if isinstance(value, list | tuple):
+        return f"a {type(value).__name__} of length {len(value)}"
+    name = type(value).__name__
+    return f"{'an' if name[0] in 'aeiouAEIOU' else 'a'} {name}"
+
+
+def fail(field: str, value, allowed: str, what: str | None = None) -> ValueError:
+    """The error for ``field``: ``"<field>: value <value> is <what>; allowed: <allowed>"``
+    (``what`` defaults to the value's type, ``kind_of(value)``); the caller raises it."""
+    if value is None and what is None:
+        return ValueError(f"{field}: value None; allowed: {allowed}")
+    return ValueError(f"{field}: value {show(value)} is {what or kind_of(value)}; allowed: {allowed}")
+
+
+def _scalar_array(value, kinds: str):
+    """``value`` as a 0-d numpy array when it is a concrete numpy/JAX scalar of a dtype kind in
+    ``kinds`` (e.g. ``"iu"``, ``"iuf"``), else ``None``."""
+    if isinstance(value, jax.core.Tracer) or not hasattr(value, "dtype") or not hasattr(value, "shape"):
+        return None
+    if tuple(value.shape) != ():
+        return None
+    arr = np.asarray(value)
+    return arr if arr.dtype.kind in kinds else None
+
+
+def number(field: str, value, allowed: str, allow_bool: bool = False) -> float:
+    """``value`` as a float if it is a real number: a Python ``int``/``float`` or a 0-d numpy/JAX
+    number (``bool`` only with ``allow_bool``, for 0/1 flags). NaN and infinities pass (range
+    checks report them); a Python int too large for a float becomes ``inf``.
+
+    Args:
+        field: the name the message gives. value: the user's value.
+        allowed: what is allowed, for the message (e.g. ``"a number in [0, 100]"``).
+
+    Returns:
+        ``float``.
+
+    Raises:
+        ValueError: ``value`` is a ``str``, ``bool``, ``None``, a list, an array with ``ndim > 0``,
+            a complex number or anything else that is not a real number.
+    """
+    if isinstance(value, bool | np.bool_):
+        if allow_bool:
+            return float(value)
+        raise fail(field, value, allowed)
+    if isinstance(value, int | float | np.integer | np.floating):
+        try:
+            return float(value)
+        except OverflowError:  # a Python int beyond float range
+            return math.inf if value > 0 else -math.inf
+    arr = _scalar_array(value, "iuf" + ("b" if allow_bool else ""))
+    if arr is None:
+        raise fail(field, value, allowed)
+    return float(arr)
+
+
+def whole_number(field: str, value, low: int = 1, allowed: str | None = None) -> int:
+    """``value`` as an ``int`` if it is a whole number ``>= low``: a Python ``int`` or a numpy/JAX
+    integer scalar (not a ``bool``, not a ``float`` such as ``2.5`` or ``2.0``).
+
+    Returns:
+        ``int``.
+
+    Raises:
+        ValueError: another type, or a value below ``low`` (naming ``field``, the value and
+            ``allowed``, default ``"a whole number >= low"``).
+    """
+    allowed = allowed or f"a whole number >= {low}"
+    if isinstance(value, bool | np.bool_):
+        raise fail(field, value, allowed)
+    if isinstance(value, int | np.integer):
+        v = int(value)
+    else:
+        arr = _scalar_array(value, "iu")
+        if arr is None:
+            raise fail(field, value, allowed)
+        v = int(arr)
+    if v < low:
+        raise ValueError(f"{field}: value {v!r} is too small; allowed: {allowed}")
+    return v
+
+
+def flag(field: str, value) -> bool:
+    """``value`` as a ``bool`` if it is one (Python or numpy ``bool``); ``1``, ``"True"`` are not.
+
+    Raises:
+        ValueError: any other type.
+    """
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    raise fail(field, value, "True or False")
+
+
+def name(field: str, value, known, what: str) -> str:
+    """``value`` if it is a ``str`` in ``known``; ``what`` names the kind, e.g. ``"class preset"``.
+
+    Raises:
+        ValueError: not a ``str``, or unknown (the message lists ``known``).
+    """
+    allowed = f"a {what}, one of {sorted(known)}"
+    if not isinstance(value, str):
+        raise fail(field, value, allowed)
+    if value not in known:
+        raise fail(field, value, allowed, f"an unknown {what}")
+    return value

@@ -227,7 +227,7 @@ def test_config_presets_and_json(tmp_path):
 FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
 
 
-def test_end_to_end_train_resume_and_checkpoint(tmp_path):
+def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
     cfg = TINY
     keys = jax.random.split(jax.random.PRNGKey(0), 2)
     # make_train: a whole run, two seeds vmapped in one call (traced abstractly: shapes only).
@@ -275,10 +275,15 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(checkpoint.CheckpointError, match="no finished checkpoint"):
         load_policy(tmp_path / "empty")
-    for f in (ckpt / "2" / "policy").rglob("*"):  # corrupt every file of the policy item
-        if f.is_file():
-            f.write_bytes(b"garbage")
-    with pytest.raises(checkpoint.CheckpointError, match="corrupted"):
+    checkpoint.save(ckpt, straight, straight.params["actor"], cfg.to_dict(), {"chunk": 2, "update": 4})
+    for step in (4, 2):
+        for f in (ckpt / str(step) / "policy").rglob("*"):  # corrupt every file of the policy item
+            if f.is_file():
+                f.write_bytes(b"garbage")
+        if step == 4:  # the older intact checkpoint is used, with a warning naming the bad one
+            load_policy(tmp_path)
+            assert f"warning: checkpoint {ckpt / str(step)} is corrupted" in capsys.readouterr().err
+    with pytest.raises(checkpoint.CheckpointError, match="no intact checkpoint"):
         load_policy(tmp_path)
 
 

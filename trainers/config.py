@@ -12,6 +12,8 @@ import json
 import math
 from pathlib import Path
 
+from raidjax import validate
+
 
 @dataclasses.dataclass(frozen=True)
 class Config:
@@ -132,7 +134,7 @@ def check_fields(obj, bounds: dict[str, tuple]) -> None:
         ok = {"int": isinstance(v, int) and not isinstance(v, bool), "float": _number(v),
               "bool": isinstance(v, bool)}.get(kind, True)
         if not ok:
-            raise ValueError(f"{f.name}: value {v!r} ({type(v).__name__}); allowed: {kind_word(kind)}")
+            raise validate.fail(f.name, v, kind_word(kind))
         if f.name in bounds:
             low, high, *wording = bounds[f.name]
             exclusive = bool(wording) and wording[0].startswith(">")

@@ -118,3 +118,47 @@ def test_documented_commands_exist_with_their_flags(module):
     assert out.returncode == 0, out.stderr[-2000:]
     missing = sorted(f for f in DOC_COMMANDS[module] if f not in out.stdout)
     assert not missing, f"{module} has no flag {missing}"
+
+
+IMPORT_TO_DIST = {"jax": "jax", "flax": "flax", "numpy": "numpy", "PIL": "pillow", "optax": "optax",
+                  "orbax": "orbax-checkpoint", "matplotlib": "matplotlib", "sklearn": "scikit-learn",
+                  "tensorboardX": "tensorboardX", "threadpoolctl": "scikit-learn"}  # scikit-learn's own dependency
+
+
+def _extra(project: dict, name: str) -> set[str]:
+    """Distribution names of an extra, self-references (``raidjax[a,b]``) resolved."""
+    out = set()
+    for req in project["optional-dependencies"][name]:
+        dist = re.split(r"[<>=\[ ]", req)[0]
+        if dist == "raidjax":
+            for sub in re.search(r"\[(.*)\]", req).group(1).split(","):
+                out |= _extra(project, sub.strip())
+        else:
+            out.add(dist)
+    return out
+
+
+def test_each_layer_imports_only_what_its_install_provides():
+    """``pip install raidjax`` is enough for the simulator, ``[train]`` adds the trainers and
+    ``[experiments]`` the pipelines (tensorboardX is optional: imported under ``try``)."""
+    import tomllib
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    core = {re.split(r"[<>=\[ ]", r)[0] for r in project["dependencies"]}
+    allowed = {"raidjax": core, "trainers": core | _extra(project, "train") | _extra(project, "tensorboard"),
+               "experiments": core | _extra(project, "experiments")}
+    for name in ("trainers.plot", "trainers.runfolder"):  # figures, imported only when drawing: [experiments]
+        allowed[name] = allowed["trainers"] | {"matplotlib"}
+    bad = []
+    for name, path in _modules().items():
+        layer = allowed.get(name, allowed[name.split(".")[0]])
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [node.module] if isinstance(node, ast.ImportFrom) and not node.level else [])
+            for n in names:
+                top = n.split(".")[0]
+                if top in sys.stdlib_module_names or top in PACKAGES:
+                    continue
+                if IMPORT_TO_DIST.get(top, top) not in layer:
+                    bad.append(f"{name} imports {top}")
+    assert not bad, bad

@@ -5,7 +5,8 @@
   refused, naming every differing setting with both values); ``--resume`` on a folder that holds
   no run is refused too. A finished run (``summary.json``/``result.json`` present) resumed is a
   no-op that says so.
-- Every file is written atomically (``raidjax.utils.atomic_write``); metrics rows past the
+- Every file is written atomically (``raidjax.utils.atomic_write``; a resumed run removes the
+  temporaries of writes that were killed); metrics rows past the
   checkpoint resumed from are dropped (``trainers.metrics``); checkpoints are verified on restore
   (``trainers.checkpoint``).
 
@@ -110,6 +111,9 @@ class RunFolder:
         self.config = config
         if self.resumed:
             self.log(f"resuming the {'finished ' if self.finished else ''}run in {self.out}")
+            for tmp in sorted(self.out.rglob(".*.tmp")):  # atomic_write's, from a write that was killed
+                tmp.unlink()
+                self.log(f"removed an unfinished temporary file {tmp} (the file it was to replace is whole)")
 
     def path(self, *parts: str) -> Path:
         """``out/parts...`` with its parent folder created."""

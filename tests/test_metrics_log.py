@@ -44,3 +44,16 @@ def test_update_rows_average_groups_and_keep_nan_when_no_group_has_a_value():
     assert abs(rows[0]["final_error"] - 0.2) < 1e-12
     assert np.isnan(rows[1]["final_error"]) and rows[1]["reward"] == 3.0
     assert rows[0]["final_error_per_group"] == [0.1, 0.3]
+
+
+def test_plot_writes_its_figure_atomically(tmp_path, monkeypatch):
+    from trainers import plot
+
+    run = tmp_path / "run"
+    log = MetricsLog(run, tensorboard=False)
+    for u in (1, 2):
+        log.write({"update": u, "env_steps": 100 * u, "win_rate": 0.1 * u, "return": float(u)})
+    written = []
+    monkeypatch.setattr(plot, "atomic_write", lambda path, data: written.append((str(path), data[:8])))
+    plot.main([str(run), "--out", str(tmp_path / "curves.png")])
+    assert written == [(str(tmp_path / "curves.png"), b"\x89PNG\r\n\x1a\n")]

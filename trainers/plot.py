@@ -7,7 +7,10 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 from pathlib import Path
+
+from raidjax.utils import atomic_write
 
 
 def read_metrics(run: str | Path) -> dict[str, list[float]]:
@@ -41,8 +44,10 @@ def main(argv=None) -> None:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out, dpi=110)
+    buf = io.BytesIO()
+    fig.savefig(buf, format=Path(args.out).suffix.lstrip(".") or "png", dpi=110)
+    plt.close(fig)
+    atomic_write(args.out, buf.getvalue())  # a reader never sees half a figure
 
 
 if __name__ == "__main__":

@@ -18,9 +18,12 @@ import jax.numpy as jnp
 from raidjax import combat, heuristic, movement
 from raidjax.observation import observe
 from raidjax.types import (
+    ACTION_HEURISTIC,
     DAMAGE_REWARD,
     DRAW,
     LOSS,
+    N_ACTIONS,
+    NOOP,
     RUNNING,
     TICK,
     TICKS_PER_DECISION,
@@ -154,6 +157,29 @@ def _select(pred, a, b):
     return jax.tree.map(lambda x, y: jnp.where(pred, x, y), a, b)
 
 
+def check_actions(actions, params: Params) -> jax.Array:
+    """``actions`` as ``int32[P]``, checked when traced (shapes and dtypes are static).
+
+    Ids outside ``[0, ACTION_HEURISTIC]`` are no-ops (``NOOP``), as are actions the player cannot
+    take now (``Observation.action_mask``: a cast on cooldown, an empty slot, a dead player):
+    values are data under ``jit`` and cannot raise.
+
+    Raises:
+        ValueError: ``actions`` not of shape ``[P]`` or not of an integer dtype (the message names
+            the shape or dtype and what is allowed).
+    """
+    actions = jnp.asarray(actions)
+    n_players = params.team.shape[-1] - 1
+    if actions.shape != (n_players,):
+        raise ValueError(f"actions: shape {list(actions.shape)}; allowed: [{n_players}], one action id per player "
+                         "(vmap over arenas for a batch)")
+    if not jnp.issubdtype(actions.dtype, jnp.integer):
+        raise ValueError(f"actions: dtype {actions.dtype}; allowed: an integer dtype (action ids 0..{N_ACTIONS - 1}, "
+                         f"or ACTION_HEURISTIC = {ACTION_HEURISTIC})")
+    actions = actions.astype(jnp.int32)
+    return jnp.where((actions < 0) | (actions > ACTION_HEURISTIC), NOOP, actions)
+
+
 def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     """Play one decision (0.1 s) of one arena; no reset.
 
@@ -161,7 +187,8 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
         key: PRNG key (crits, dodges, parries).
         state: the arena's ``State``.
         actions: ``int32[P]`` one action per player (``types`` action ids; ``ACTION_HEURISTIC``
-            hands the player to the built-in PT-HR script). Dead players' actions are ignored.
+            hands the player to the built-in PT-HR script). Dead players' actions, masked actions
+            and ids outside ``[0, ACTION_HEURISTIC]`` are no-ops (``check_actions``).
         params: the arena's ``Params``.
 
     Returns:
@@ -170,12 +197,12 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
         3 draw), and per player ``alive`` (bool[P]), ``damage_dealt`` (float32[P], to the boss
         this step, all multipliers applied) and ``back_attack`` (int32[P]).
     """
+    actions = check_actions(actions, params)
     n_players = actions.shape[0]
     n_sub = params.config.n_substeps
     n_ticks = TICKS_PER_DECISION // n_sub
     was_done = state.result != RUNNING
     table = combat.effect_table(params)
-    actions = actions.astype(jnp.int32)
 
     def substep(carry, k):
         cur, to_boss, back = carry

@@ -159,8 +159,9 @@ def without_timing(result: dict) -> dict:
     return {k: v for k, v in result.items() if k not in TIMING}
 
 
-def same_run(out: Path, ref: Path) -> None:
-    """``out`` equals ``ref``: metrics rows, final policy weights, result; no temporary file left."""
+def same_run(out: Path, ref: Path, result_fields: tuple[str, ...] | None = None) -> None:
+    """``out`` equals ``ref``: metrics rows, final policy weights, the result (its ``result_fields``,
+    default all but timings); no temporary file left."""
     import jax
     import numpy as np
 
@@ -172,6 +173,8 @@ def same_run(out: Path, ref: Path) -> None:
     for x, y in zip(jax.tree.leaves(wa), jax.tree.leaves(wb), strict=True):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
     res, res_ref = (json.loads((d / "result.json").read_text()) for d in (out, ref))
+    if result_fields is not None:
+        res, res_ref = ({k: r[k] for k in result_fields} for r in (res, res_ref))
     assert without_timing(res) == without_timing(res_ref)
     assert not [p for p in out.rglob(".*.tmp")], "temporary files left behind"
 

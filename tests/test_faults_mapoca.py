@@ -28,12 +28,12 @@ def tiny_config(tmp_path_factory) -> Path:
 
 
 def test_mapoca_survives_a_chain_of_kills_and_a_corrupted_checkpoint(tmp_path, tiny_config, capsys):
-    args = ["--config", str(tiny_config), "--total-steps", "128", "--skill-range", "9", "--eval-games", "8"]
+    # No evaluation (a function of the final weights, compared below); test_refusals... runs one.
+    args = ["--config", str(tiny_config), "--total-steps", "128", "--skill-range", "9", "--eval-games", "0"]
     ref, out = tmp_path / "uninterrupted", tmp_path / "faulty"
     mapoca_cli.main([*args, "--out", str(ref)])  # in-process: the same programs, shared by the cache
     last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert last == json.loads((ref / "result.json").read_text())
-    assert last["env_steps"] == 128 and 0.0 <= last["win_rate"] <= 1.0 and len(str(last["win_rate"])) <= 8
+    assert last == json.loads((ref / "result.json").read_text()) and last["env_steps"] == 128
     ckpt = out / "checkpoints"
 
     def faulty(fault: str, killed: bool = True, resume: bool = True):
@@ -102,9 +102,11 @@ def cli(module, argv, capsys) -> tuple[int, str]:
 
 
 def test_refusals_are_one_line_and_touch_nothing(tmp_path, tiny_config, capsys):
-    args = ["--config", str(tiny_config), "--total-steps", "32", "--skill-range", "9", "--eval-games", "0"]
+    args = ["--config", str(tiny_config), "--total-steps", "32", "--skill-range", "9", "--eval-games", "4"]
     out = tmp_path / "run"
-    mapoca_cli.main([*args, "--out", str(out)])
+    first = mapoca_cli.main([*args, "--out", str(out)])
+    assert 0.0 <= first["win_rate"] <= 1.0 and len(str(first["win_rate"])) <= 8  # 0.75, not 0.75000001
+    assert len(str(first["heuristic_win_rate"])) <= 8
     files = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
 
     cases = [

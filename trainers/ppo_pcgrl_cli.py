@@ -57,7 +57,8 @@ def _args(argv=None):
                     help="updates per jitted chunk (progress/checkpoint period)")
     ap.add_argument("--max-chunks", type=whole_number(1), help="stop (after a checkpoint) once this many chunks "
                     "ran in this invocation")
-    ap.add_argument("--eval-episodes", type=whole_number(1), default=8, help="episodes per target and method")
+    ap.add_argument("--eval-episodes", type=whole_number(0), default=8,
+                    help="episodes per target and method (0 skips the evaluation)")
     ap.add_argument("--eval-gen-games", type=whole_number(1), default=100,
                     help="games per generator measurement in eval")
     ap.add_argument("--eval-games", type=whole_number(1), default=300, help="games measuring each final skill")
@@ -134,24 +135,26 @@ def main(argv=None) -> dict | None:
         print(f"stopped at update {u}/{total_updates} (--max-chunks); rerun with --resume to continue", flush=True)
         return {"stopped_at_update": u}
     t_eval = time.perf_counter()
-    gens = evaluate(jax.random.key(args.seed + 1), config, runner["params"], labels, gen_games=args.eval_gen_games,
-                    greedy=args.greedy, episodes=args.eval_episodes, eval_games=args.eval_games,
-                    baselines=not args.no_baselines)
-    summ = pcg.metrics.summarize(gens)
-    atomic_write(out / "eval.json", finite_json(summ, indent=1))
-    for name, s in summ.items():
-        c = s["controllability"]
-        print(f"{name}: mean error {c['err_mean']:.3f} ± {c['err_sd']:.3f} (n={c['n']}) yield {s['yield']:.2f} "
-              f"edits {s['edits_mean']:.1f} PC1 SD {s['pc1_sd_mean']:.3f}", flush=True)
-    res = {"mean_error": summ["PPO"]["controllability"]["err_mean"],
-           "heuristic_mean_error": summ.get("PCG-HR", {}).get("controllability", {}).get("err_mean"),
-           "random_mean_error": summ.get("PCG-RD", {}).get("controllability", {}).get("err_mean"),
-           "pc1_sd": {n: s["pc1_sd_mean"] for n, s in summ.items()},
-           "yield": {n: s["yield"] for n, s in summ.items()},
-           "train_seconds": train_s, "eval_seconds": time.perf_counter() - t_eval,
-           "seconds": time.perf_counter() - t_start, "preset": args.preset, "seeds": args.seeds,
+    res = {"train_seconds": train_s, "preset": args.preset, "seeds": args.seeds,
            "total_steps": total_updates * steps_per_update, "groups": G, "n_games": config.n_games,
            "cpu_count": os.cpu_count()}
+    if args.eval_episodes > 0:
+        gens = evaluate(jax.random.key(args.seed + 1), config, runner["params"], labels,
+                        gen_games=args.eval_gen_games, greedy=args.greedy, episodes=args.eval_episodes,
+                        eval_games=args.eval_games, baselines=not args.no_baselines)
+        summ = pcg.metrics.summarize(gens)
+        atomic_write(out / "eval.json", finite_json(summ, indent=1))
+        for name, s in summ.items():
+            c = s["controllability"]
+            print(f"{name}: mean error {c['err_mean']:.3f} ± {c['err_sd']:.3f} (n={c['n']}) yield {s['yield']:.2f} "
+                  f"edits {s['edits_mean']:.1f} PC1 SD {s['pc1_sd_mean']:.3f}", flush=True)
+        res.update({"mean_error": summ["PPO"]["controllability"]["err_mean"],
+                    "heuristic_mean_error": summ.get("PCG-HR", {}).get("controllability", {}).get("err_mean"),
+                    "random_mean_error": summ.get("PCG-RD", {}).get("controllability", {}).get("err_mean"),
+                    "pc1_sd": {n: s["pc1_sd_mean"] for n, s in summ.items()},
+                    "yield": {n: s["yield"] for n, s in summ.items()},
+                    "eval_seconds": time.perf_counter() - t_eval})
+    res["seconds"] = time.perf_counter() - t_start
     res = json.loads(finite_json(res))  # NaN as null: valid JSON
     atomic_write(out / "result.json", json.dumps(res, indent=1))
     print(json.dumps(res), flush=True)

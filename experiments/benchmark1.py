@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
-from raidjax.utils import atomic_write, fmt_seconds, run_cli, whole_number
+from raidjax.utils import atomic_write, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import PRESETS, Config
 from trainers.mapoca import RANGE_TABLE, make_trainer, range_table
@@ -307,7 +307,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--protocol", choices=sorted(PROTOCOLS), default="paper",
                     help="paper: train MA-POCA1..4 and populations at cool time 0.5, range redrawn every second "
                     "episode; raidjax: train at the test content (cool time 1.0), range redrawn every episode")
-    ap.add_argument("--max-chunks", type=whole_number(1), help="stop training after this many chunks (tests resuming)")
+    ap.add_argument("--max-chunks", type=whole_number_arg(1),
+                    help="stop training after this many chunks (tests resuming)")
     args = ap.parse_args(argv)
     scale = SCALES[args.scale]
     runs = runs_of(scale, args.protocol)

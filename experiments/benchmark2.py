@@ -41,7 +41,7 @@ import numpy as np
 
 from raidjax import pcg
 from raidjax.pcg import metrics as pm
-from raidjax.utils import atomic_write, fmt_seconds, run_cli, whole_number
+from raidjax.utils import atomic_write, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.generate import evaluate, target_groups
 from trainers.metrics import update_rows
@@ -135,9 +135,10 @@ def _parse(argv=None) -> argparse.Namespace:
                     "comma-separated signs in {-1,0,1} for range,cool_time,cast_time,coefficient (1,1,1,1 = heavy "
                     "vs light skills)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
-    ap.add_argument("--total-steps", type=whole_number(1), help="PPO generator steps per group (default: the scale's)")
-    ap.add_argument("--seeds", type=whole_number(1), help="PPO seeds trained together (default: the scale's)")
-    ap.add_argument("--episodes", type=whole_number(1),
+    ap.add_argument("--total-steps", type=whole_number_arg(1),
+                    help="PPO generator steps per group (default: the scale's)")
+    ap.add_argument("--seeds", type=whole_number_arg(1), help="PPO seeds trained together (default: the scale's)")
+    ap.add_argument("--episodes", type=whole_number_arg(1),
                     help="generation episodes per target and method (default: the scale's)")
     ap.add_argument("--pool-repeats", action="store_true",
                     help="generation env: re-measuring an unchanged skill pools its games (all three "

@@ -48,8 +48,7 @@ class Box:
         """A uniform draw (bounded boxes; unbounded dimensions draw from [-1, 1])."""
         if self.dtype == jnp.bool_:
             return jax.random.bernoulli(key, 0.5, self.shape)
-        low, high = (max(self.low, -1.0), min(self.high, 1.0)) if np.isinf([self.low, self.high]).any() else (
-            self.low, self.high)
+        low, high = (-1.0 if np.isinf(self.low) else self.low), (1.0 if np.isinf(self.high) else self.high)
         return jax.random.uniform(key, self.shape, jnp.float32, low, high).astype(self.dtype)
 
     def contains(self, x) -> jax.Array:

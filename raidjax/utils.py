@@ -1,6 +1,6 @@
 """Small array helpers that stay fast under ``vmap`` on CPU, and host-side helpers shared by the
 simulator, trainers and experiments: ``atomic_write`` (every file a user keeps), ``machine`` and
-``fmt_seconds`` (reports and progress lines), ``whole_number`` and ``run_cli`` (command lines)."""
+``fmt_seconds`` (reports and progress lines), ``whole_number_arg``, ``run_cli`` and ``finite_json`` (command lines)."""
 
 from __future__ import annotations
 
@@ -102,9 +102,9 @@ def atomic_write(path: str | Path, data: str | bytes) -> Path:
     return path
 
 
-def whole_number(low: int = 1):
+def whole_number_arg(low: int = 1):
     """An ``argparse`` type: a whole number ``>= low``, else a one-line usage error naming the value
-    (checked before anything compiles)."""
+    (checked before anything compiles; ``raidjax.validate.whole_number`` checks Python values)."""
     import argparse
 
     def parse(text: str) -> int:

@@ -23,12 +23,12 @@ import jax
 import numpy as np
 
 import raidjax
-from raidjax.utils import atomic_write, fmt_seconds, machine, run_cli, whole_number
+from raidjax.utils import atomic_write, fmt_seconds, machine, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import Config, load_config
 from trainers.mapoca import load_policy, make_trainer, summarize
 from trainers.metrics import MetricsLog
-from trainers.runfolder import RunFolder, check_out
+from trainers.runfolder import RunFolder
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -39,18 +39,18 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument("--config", help="JSON file of Config fields (applied after the preset)")
     ap.add_argument("--skill-range", type=float, nargs="+", help="range(s) of the players' skill; "
                     "several values = drawn per episode (default: the preset's)")
-    ap.add_argument("--total-steps", type=whole_number(1),
+    ap.add_argument("--total-steps", type=whole_number_arg(1),
                     help="environment decisions per seed (default: the preset's)")
-    ap.add_argument("--seeds", type=whole_number(1), default=1, help="seeds trained together (vmapped)")
+    ap.add_argument("--seeds", type=whole_number_arg(1), default=1, help="seeds trained together (vmapped)")
     ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
     ap.add_argument("--out", required=True, help="run folder (new, or holding this run with --resume)")
     ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
                     "checkpoint (same settings; a finished run is left as it is)")
-    ap.add_argument("--checkpoint-every", type=whole_number(1), help="updates between checkpoints")
-    ap.add_argument("--updates-per-chunk", type=whole_number(1), help="updates per jitted chunk (log row)")
-    ap.add_argument("--eval-games", type=whole_number(0), help="games of the final evaluation (0 skips it; "
+    ap.add_argument("--checkpoint-every", type=whole_number_arg(1), help="updates between checkpoints")
+    ap.add_argument("--updates-per-chunk", type=whole_number_arg(1), help="updates per jitted chunk (log row)")
+    ap.add_argument("--eval-games", type=whole_number_arg(0), help="games of the final evaluation (0 skips it; "
                     "may change on --resume)")
-    ap.add_argument("--max-chunks", type=whole_number(1), help="stop (after a checkpoint) once this many chunks "
+    ap.add_argument("--max-chunks", type=whole_number_arg(1), help="stop (after a checkpoint) once this many chunks "
                     "ran in this invocation")
     return ap.parse_args(argv)
 
@@ -79,7 +79,6 @@ def main(argv=None) -> dict:
     """Train (or resume), log, checkpoint, evaluate; print and return the final JSON object."""
     t_start = time.perf_counter()
     args = parse_args(argv)
-    check_out(args.out)
     cfg = load_config(args.preset, args.config, skill_ranges=args.skill_range, total_steps=args.total_steps,
                       checkpoint_every=args.checkpoint_every, updates_per_chunk=args.updates_per_chunk,
                       eval_games=args.eval_games)

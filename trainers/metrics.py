@@ -25,15 +25,6 @@ def _scalar(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
-def _json_value(v):
-    """NaN and infinities as ``null``: bare ``NaN`` is not JSON for most parsers."""
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, list):
-        return [_json_value(x) for x in v]
-    return v
-
-
 def _tensorboard_writer(out: Path):
     """A ``tensorboardX.SummaryWriter`` on ``DIR/tensorboard``, or ``None`` if it is not installed."""
     try:
@@ -84,7 +75,7 @@ class MetricsLog:
 
     def write(self, row: dict) -> None:
         """Append one row (a dict with an ``update`` key) to both files, and to TensorBoard."""
-        row = {k: _json_value(v) for k, v in row.items()}
+        row = json.loads(finite_json(row))  # NaN as null, numpy scalars as numbers
         if self.tb is not None:
             step = int(row.get("env_steps", row["update"]))
             for k, v in row.items():
@@ -92,7 +83,7 @@ class MetricsLog:
                     self.tb.add_scalar(k, v, step)
             self.tb.flush()
         with self.jsonl.open("a") as f:
-            f.write(finite_json(row) + "\n")
+            f.write(json.dumps(row) + "\n")
         new = self.fields is None
         if new:
             self.fields = [k for k, v in row.items() if _scalar(v) or v is None]

@@ -23,26 +23,26 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg
-from raidjax.utils import atomic_write, finite_json, fmt_seconds, run_cli, whole_number
+from raidjax.utils import atomic_write, finite_json, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.generate import evaluate, target_groups
 from trainers.metrics import MetricsLog, update_rows
 from trainers.ppo_pcgrl import PRESETS, get_config, make_train
-from trainers.runfolder import RunFolder, check_out
+from trainers.runfolder import RunFolder
 
 
 def _args(argv=None):
     ap = argparse.ArgumentParser(prog="python -m trainers.ppo_pcgrl_cli", description="PPO-PCGRL on raidjax.pcg",
                                  formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument("--preset", choices=sorted(PRESETS), default="cpu")
-    ap.add_argument("--total-steps", type=whole_number(1), help="generator steps per group (default: the preset's)")
-    ap.add_argument("--seeds", type=whole_number(1), default=1)
+    ap.add_argument("--total-steps", type=whole_number_arg(1), help="generator steps per group (default: the preset's)")
+    ap.add_argument("--seeds", type=whole_number_arg(1), default=1)
     ap.add_argument("--out", default="runs/ppo_pcgrl", help="run folder (new, or holding this run with --resume)")
     ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
                     "checkpoint (same settings; a finished run is left as it is)")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--n-games", type=whole_number(1), help="playtest games per training measurement")
-    ap.add_argument("--n-arenas", type=whole_number(1), help="generator episodes stepped in parallel")
+    ap.add_argument("--n-games", type=whole_number_arg(1), help="playtest games per training measurement")
+    ap.add_argument("--n-arenas", type=whole_number_arg(1), help="generator episodes stepped in parallel")
     ap.add_argument("--lr", type=float)
     ap.add_argument("--edit-cost", type=float, help="learner penalty per tick moved")
     ap.add_argument("--goal-cost", type=float,
@@ -53,15 +53,15 @@ def _args(argv=None):
     ap.add_argument("--ent-coef", type=float, help="entropy bonus coefficient")
     ap.add_argument("--pool-repeats", action="store_true", default=None,
                     help="re-measuring an unchanged skill pools its games (sharper win rate when holding)")
-    ap.add_argument("--chunk", type=whole_number(1), default=4,
+    ap.add_argument("--chunk", type=whole_number_arg(1), default=4,
                     help="updates per jitted chunk (progress/checkpoint period)")
-    ap.add_argument("--max-chunks", type=whole_number(1), help="stop (after a checkpoint) once this many chunks "
+    ap.add_argument("--max-chunks", type=whole_number_arg(1), help="stop (after a checkpoint) once this many chunks "
                     "ran in this invocation")
-    ap.add_argument("--eval-episodes", type=whole_number(0), default=8,
+    ap.add_argument("--eval-episodes", type=whole_number_arg(0), default=8,
                     help="episodes per target and method (0 skips the evaluation)")
-    ap.add_argument("--eval-gen-games", type=whole_number(1), default=100,
+    ap.add_argument("--eval-gen-games", type=whole_number_arg(1), default=100,
                     help="games per generator measurement in eval")
-    ap.add_argument("--eval-games", type=whole_number(1), default=300, help="games measuring each final skill")
+    ap.add_argument("--eval-games", type=whole_number_arg(1), default=300, help="games measuring each final skill")
     ap.add_argument("--greedy", action="store_true", help="argmax actions in evaluation")
     ap.add_argument("--no-baselines", action="store_true")
     return ap.parse_args(argv)
@@ -71,7 +71,6 @@ def main(argv=None) -> dict | None:
     """Train, checkpoint, evaluate; the last stdout line is one JSON object (also returned)."""
     args = _args(argv)
     t_start = time.perf_counter()
-    check_out(args.out)
     config = get_config(args.preset, total_steps=args.total_steps, n_games=args.n_games, n_arenas=args.n_arenas,
                         lr=args.lr, edit_cost=args.edit_cost, pool_repeats=args.pool_repeats,
                         ent_coef=args.ent_coef, goal_cost=args.goal_cost, goal_axis=args.goal_axis)

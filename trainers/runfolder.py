@@ -121,11 +121,10 @@ class RunFolder:
         p.parent.mkdir(parents=True, exist_ok=True)
         return p
 
-    def log(self, msg: str, quiet: bool = False) -> None:
-        """Print ``msg`` (unless ``quiet``) and append it with a timestamp to ``log.txt``."""
+    def log(self, msg: str) -> None:
+        """Print ``msg`` and append it with a timestamp to ``log.txt``."""
         line = f"[{time.strftime('%H:%M:%S')} +{fmt_seconds(time.perf_counter() - self.t0)}] {msg}"
-        if not quiet:
-            print(line, flush=True)
+        print(line, flush=True)
         with open(self.out / "log.txt", "a") as f:
             f.write(line + "\n")
 

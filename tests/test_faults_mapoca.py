@@ -119,6 +119,8 @@ def test_refusals_are_one_line_and_touch_nothing(tmp_path, tiny_config, capsys):
     for argv, message in cases:
         code, err = cli(mapoca_cli, argv, capsys)
         assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+    code, err = cli(mapoca_cli, [*args, "--out", str(out), "--resume", "--total-steps", "0"], capsys)  # argparse
+    assert code == 2 and "--total-steps: value '0'; allowed: a whole number >= 1" in err and "Traceback" not in err
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == files
 
     result = mapoca_cli.main([*args, "--out", str(out), "--resume"])  # finished: a no-op that says so

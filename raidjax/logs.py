@@ -74,15 +74,18 @@ def episode_summary(state: State) -> dict[str, jax.Array]:
     }
 
 
-def record_episode(key: jax.Array, params: Params, policy: Callable, n_decisions: int):
+def record_episode(key: jax.Array, params: Params, policy: Callable, n_decisions: int, weights=None):
     """Play one episode for ``n_decisions`` decisions (static) and record every decision.
 
     Args:
         key: PRNG key.
         params: one arena's ``Params`` (vmap this function for a batch).
-        policy: ``policy(key, obs, state, params) -> int32[P]``.
+        policy: ``policy(key, obs, state, params) -> int32[P]``, or with ``weights``
+            ``policy(weights, key, obs, state, params)``.
         n_decisions: trace length ``T``; decisions after the episode ended repeat the final
             state with ``running = False``.
+        weights: ``None`` or the policy's weights (a pytree of arrays; under ``jit`` with
+            ``policy`` static, new weights of the same shapes reuse the compiled program).
 
     Returns:
         ``(trace, summary)``: ``Trace`` with leading axis ``T + 1`` (the reset state first) and
@@ -96,7 +99,7 @@ def record_episode(key: jax.Array, params: Params, policy: Callable, n_decisions
     def body(carry, k):
         obs, state = carry
         ka, ks = jax.random.split(k)
-        actions = policy(ka, obs, state, params)
+        actions = policy(ka, obs, state, params) if weights is None else policy(weights, ka, obs, state, params)
         running = state.result == RUNNING
         obs, state, reward, _, _ = step(ks, state, actions, params)
         return (obs, state), snapshot(state, actions, reward, running)

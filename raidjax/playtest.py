@@ -20,16 +20,26 @@ from raidjax.logs import HEATMAP_BINS, episode_summary, grid_cell
 from raidjax.observation import observe
 from raidjax.types import RUNNING, Params
 
-Policy = Callable  # policy(key, obs, state, params) -> int32[P]
+Policy = Callable  # policy(key, obs, state, params) -> int32[P], or policy(weights, key, obs, state, params)
 
 
-def check_args(params: Params, n_games, policy: Policy | None = None) -> int:
+def bind(policy: Policy, weights):
+    """``policy`` as ``(key, obs, state, params) -> actions``: itself when ``weights`` is ``None``,
+    else with ``weights`` (a pytree of arrays, traced, so new weights of the same shapes reuse
+    the compiled program) as its first argument."""
+    if weights is None:
+        return policy
+    return lambda key, obs, state, params: policy(weights, key, obs, state, params)
+
+
+def check_args(params: Params, n_games, policy: Policy | None = None, weights=None) -> int:
     """Check the arguments of a playtest on the host, before anything is traced or compiled.
 
     Args:
         params: ``Params``, unbatched or with one batch axis (see ``broadcast_params``).
         n_games: a whole number >= 1 (a Python or numpy integer; not a ``bool``, ``float`` or ``str``).
         policy: if given, a hashable callable (it is a static argument of the jitted playtest).
+        weights: ``None`` or a pytree of arrays (the policy's weights, a traced argument).
 
     Returns:
         ``n_games`` as a Python ``int`` (so ``5`` and ``np.int64(5)`` share one compilation).
@@ -53,6 +63,10 @@ def check_args(params: Params, n_games, policy: Policy | None = None) -> int:
             raise validate.fail("policy", policy, allowed, "unhashable") from None
         if not callable(policy):
             raise validate.fail("policy", policy, allowed)
+    if weights is not None:
+        bad = [x for x in jax.tree.leaves(weights) if not hasattr(x, "dtype")]
+        if bad:
+            raise validate.fail("weights", bad[0], "a pytree of arrays (the policy's weights) or None")
     return n
 
 
@@ -117,12 +131,12 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_games: int, fol
 
 
 @partial(jax.jit, static_argnames=("policy", "n_games"))
-def _playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> dict[str, jax.Array]:
-    state, _ = _play_games(key, broadcast_params(params, n_games), policy, n_games)
+def _playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weights) -> dict[str, jax.Array]:
+    state, _ = _play_games(key, broadcast_params(params, n_games), bind(policy, weights), n_games)
     return episode_summary(state)
 
 
-def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> dict[str, jax.Array]:
+def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weights=None) -> dict[str, jax.Array]:
     """Play ``n_games`` games in parallel until every one has ended (win, loss or draw).
 
     Under the ``"reference"`` rules an arena's games depend on the one before (carried
@@ -135,8 +149,12 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> di
         params: content, unbatched or batched (see ``broadcast_params``).
         policy: ``policy(key, obs, state, params) -> int32[P]`` for one arena (e.g.
             ``raidjax.policies.heuristic``); it must be hashable (a function, not a lambda
-            rebuilt every call, to avoid recompiling).
+            rebuilt every call, to avoid recompiling). With ``weights``, it is called
+            ``policy(weights, key, obs, state, params)``.
         n_games: number of games, a whole number >= 1 (static: one compilation per value).
+        weights: ``None``, or the policy's weights (a pytree of arrays). They are an argument of
+            the compiled program, not constants in it, so evaluating many checkpoints of one
+            network compiles once (``trainers.mapoca.load_policy`` returns ``(policy, weights)``).
 
     Returns:
         Dict of arrays with leading axis ``n_games``: ``outcome`` int32 (1 win, 2 loss, 3 draw),
@@ -147,13 +165,13 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int) -> di
     Raises:
         ValueError: before anything compiles, as ``check_args``: ``n_games`` not a whole number
             >= 1 (``0``, ``-1``, ``2.5``, ``"3"``, ``True``), ``params`` not ``Params`` or batched
-            wrongly, ``policy`` not a hashable callable.
+            wrongly, ``policy`` not a hashable callable, ``weights`` not a pytree of arrays.
     """
-    return _playtest(key, params, policy, check_args(params, n_games, policy))
+    return _playtest(key, params, policy, check_args(params, n_games, policy, weights), weights)
 
 
 @partial(jax.jit, static_argnames=("policy", "n_games", "bins"))
-def _playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int, bins: int) -> jax.Array:
+def _playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int, bins: int, weights) -> jax.Array:
     batch = broadcast_params(params, n_games)
     n_players = batch.team.shape[-1] - 1
 
@@ -163,12 +181,12 @@ def _playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games:
         player = jnp.broadcast_to(jnp.arange(n_players), w.shape)
         return counts.at[player, cell[..., 0], cell[..., 1]].add(w)
 
-    _, counts = _play_games(key, batch, policy, n_games, count, jnp.zeros((n_players, bins, bins)))
+    _, counts = _play_games(key, batch, bind(policy, weights), n_games, count, jnp.zeros((n_players, bins, bins)))
     return counts / jnp.maximum(counts.sum((1, 2), keepdims=True), 1.0)
 
 
 def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int,
-                       bins: int = HEATMAP_BINS) -> jax.Array:
+                       bins: int = HEATMAP_BINS, weights=None) -> jax.Array:
     """Per-player position occupancy over the games ``playtest`` would play with the same key.
 
     Counts, at every decision (the reset state included) of every game still running, the cell
@@ -176,7 +194,7 @@ def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: 
     traces, so 500 games x 2000 decisions cost no memory.
 
     Args:
-        key, params, policy, n_games: as ``playtest``.
+        key, params, policy, n_games, weights: as ``playtest``.
         bins: grid size, a whole number >= 1 (24 in the paper; static).
 
     Returns:
@@ -186,8 +204,8 @@ def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: 
     Raises:
         ValueError: as ``playtest``, or ``bins`` not a whole number >= 1.
     """
-    n_games = check_args(params, n_games, policy)
-    return _playtest_occupancy(key, params, policy, n_games, validate.whole_number("bins", bins, 1))
+    n_games = check_args(params, n_games, policy, weights)
+    return _playtest_occupancy(key, params, policy, n_games, validate.whole_number("bins", bins, 1), weights)
 
 
 def win_rate(results: dict[str, jax.Array]) -> jax.Array:

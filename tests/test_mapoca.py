@@ -261,14 +261,23 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
     for a, b in zip(jax.tree.leaves((straight, m_straight)), jax.tree.leaves((resumed, m_resumed)), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
-    # The trained policy loads as a pure, hashable raidjax policy.
-    policy = load_policy(tmp_path, seed=1, deterministic=True)
-    hash(policy)
+    # The trained team loads as a hashable policy that takes its weights as an argument: every
+    # seed's weights share one policy, so playtesting them compiles once.
+    policy, w1 = load_policy(tmp_path, seed=1, deterministic=True)
+    policy0, w0 = load_policy(tmp_path, seed=0, deterministic=True)
+    assert policy == policy0 and hash(policy) == hash(policy0)
     first = lambda tree: jax.tree.map(lambda x: x[0, 0], tree)  # seed 0, arena 0
     obs, state = first(r0.obs), first(r0.env_state)
-    actions = np.asarray(jax.jit(policy)(jax.random.PRNGKey(6), obs, state, raidjax.make_params(skill_range=9.0)))
+    actions = np.asarray(jax.jit(policy)(w1, jax.random.PRNGKey(6), obs, state, raidjax.make_params(skill_range=9.0)))
     assert actions.shape == (3,) and actions.dtype == np.int32
     assert np.asarray(obs.action_mask)[np.arange(3), actions].all()
+    content = raidjax.make_params(skill_range=9.0)
+    from raidjax.playtest import _playtest
+
+    before = _playtest._cache_size()
+    for w in (w0, w1, w0):
+        raidjax.playtest(jax.random.key(0), content, policy, 4, weights=w)
+    assert _playtest._cache_size() == before + 1
 
     with pytest.raises(checkpoint.CheckpointError, match="does not exist"):
         load_policy(tmp_path / "nope")

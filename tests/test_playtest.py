@@ -129,3 +129,27 @@ def test_playtest_occupancy_counts_spawn_cells_of_a_standing_team():
         expect = np.zeros((bins, bins))
         np.add.at(expect, (cells[:, p, 0], cells[:, p, 1]), 1.0 / n)
         np.testing.assert_allclose(occ[p], expect, atol=1e-6)
+
+
+def switched(weights, key, obs, state, params):
+    """A policy with weights: PT-HR where ``weights["on"]`` is true, standing still otherwise."""
+    return jnp.where(weights["on"], policies.heuristic(key, obs, state, params), policies.noop(key, obs, state, params))
+
+
+def test_policy_with_weights_plays_as_bound_and_compiles_once():
+    from raidjax.playtest import _playtest
+
+    key = jax.random.key(3)
+    plain = {p: jax.device_get(raidjax.playtest(key, LOSS, p, N)) for p in (policies.heuristic, policies.noop)}
+    before = _playtest._cache_size()
+    for on, p in ((True, policies.heuristic), (False, policies.noop)):
+        got = jax.device_get(raidjax.playtest(key, LOSS, switched, N, weights={"on": jnp.bool_(on)}))
+        for name in got:
+            np.testing.assert_array_equal(got[name], plain[p][name], err_msg=name)
+    assert _playtest._cache_size() == before + 1  # the second weights reused the program
+    # record_episode with weights equals the bound policy too.
+    trace_w, _ = raidjax.logs.record_episode(key, LOSS, switched, 12, weights={"on": jnp.bool_(True)})
+    trace_p, _ = raidjax.logs.record_episode(key, LOSS, policies.heuristic, 12)
+    np.testing.assert_array_equal(trace_w.pos, trace_p.pos)
+    with pytest.raises(ValueError, match="weights"):
+        raidjax.playtest(key, LOSS, switched, N, weights={"on": "yes"})

@@ -27,6 +27,7 @@ acted (was alive at t), normalised over those entries of the whole update.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -377,18 +378,24 @@ def summarize(m: dict) -> dict:
     return out
 
 
-def team_policy(actor: Actor, actor_params, deterministic: bool = False):
-    """A pure ``policy(key, obs, state, params) -> int32[P]`` for one arena (``raidjax.playtest``
-    compatible; the weights are baked in as constants, the function is hashable by identity)."""
+@dataclasses.dataclass(frozen=True)
+class TeamPolicy:
+    """A trained team as ``policy(weights, key, obs, state, params) -> int32[P]`` for one arena.
 
-    def policy(key, obs, state, params):
-        return sample_actions(key, actor.apply(actor_params, obs), obs.alive, deterministic)[0]
+    Hashable by value (the architecture and ``deterministic``), with the weights an argument:
+    ``raidjax.playtest(key, params, policy, n, weights=w)`` compiles once for every checkpoint
+    of one architecture. ``weights`` is the actor's flax parameter tree, unbatched.
+    """
 
-    return policy
+    actor: Actor
+    deterministic: bool = False
+
+    def __call__(self, weights, key, obs, state, params):
+        return sample_actions(key, self.actor.apply(weights, obs), obs.alive, self.deterministic)[0]
 
 
 def load_policy(path: str | Path, seed: int = 0, deterministic: bool | None = None):
-    """Load a trained team as ``policy(key, obs, state, params) -> int32[P]``.
+    """Load a trained team as ``(policy, weights)`` for ``raidjax.playtest(..., policy, n, weights=weights)``.
 
     Args:
         path: the run folder (``--out``), its ``checkpoints`` folder, or one checkpoint.
@@ -396,7 +403,8 @@ def load_policy(path: str | Path, seed: int = 0, deterministic: bool | None = No
         deterministic: greedy actions instead of sampling (default: the run's ``deterministic_eval``).
 
     Returns:
-        The policy (reuse the same object across ``playtest`` calls to avoid recompiling).
+        ``(policy, weights)``: a ``TeamPolicy`` (equal for every run of one architecture) and that
+        seed's actor weights (a pytree of arrays).
 
     Raises:
         checkpoint.CheckpointError: missing, incomplete or corrupted checkpoint, or ``seed`` out of range.
@@ -408,4 +416,4 @@ def load_policy(path: str | Path, seed: int = 0, deterministic: bool | None = No
         raise checkpoint.CheckpointError(f"seed: {seed} not in the checkpoint's {n_seeds} seeds")
     weights = jax.tree.map(lambda x: jnp.asarray(x[seed]), weights)
     actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention)
-    return team_policy(actor, weights, cfg.deterministic_eval if deterministic is None else deterministic)
+    return TeamPolicy(actor, cfg.deterministic_eval if deterministic is None else bool(deterministic)), weights

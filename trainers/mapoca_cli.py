@@ -60,12 +60,12 @@ def evaluate(out: Path, cfg: Config, n_seeds: int, key: jax.Array) -> dict:
     skill range in ``cfg.skill_ranges`` (same content, same typed PRNG ``key``). Returns a
     JSON-able dict."""
     per_range = {}
-    policies = [load_policy(out, seed=s) for s in range(n_seeds)]  # one compile per seed
+    teams = [load_policy(out, seed=s) for s in range(n_seeds)]  # one policy, n_seeds weights: one compile
     rate = lambda x: round(float(x), 6)  # float32 win rates without their float32 noise (0.726, not 0.72600001)
     for r in cfg.skill_ranges:
         content = raidjax.make_params(skill_range=r)
         hr = rate(raidjax.win_rate(raidjax.playtest(key, content, raidjax.policies.heuristic, cfg.eval_games)))
-        wins = [rate(raidjax.win_rate(raidjax.playtest(key, content, p, cfg.eval_games))) for p in policies]
+        wins = [rate(raidjax.win_rate(raidjax.playtest(key, content, p, cfg.eval_games, weights=w))) for p, w in teams]
         per_range[f"{r:g}"] = {"win_rate": rate(np.mean(wins)), "win_rate_per_seed": wins,
                                "heuristic_win_rate": hr}
     return {

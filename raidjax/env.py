@@ -21,6 +21,7 @@ from raidjax.types import (
     ACTION_HEURISTIC,
     DAMAGE_REWARD,
     DRAW,
+    HALF_ARENA,
     LOSS,
     N_ACTIONS,
     NOOP,
@@ -43,7 +44,8 @@ def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
     """Start an episode.
 
     Args:
-        key: PRNG key (draws PT-HR's per-episode circling directions).
+        key: PRNG key (draws PT-HR's per-episode circling directions and, with
+            ``EnvConfig.random_spawns``, the spawn positions and headings).
         params: ``Params`` of one arena (``U`` units).
 
     Returns:
@@ -54,9 +56,12 @@ def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
     n_players = u_n - 1
     m = params.config.max_projectiles
     k_sign, k_clock = jax.random.split(key)
-    xs = (jnp.arange(n_players) - (n_players - 1) / 2) * PLAYER_SPACING
-    pos = jnp.concatenate([jnp.stack([xs, jnp.full(n_players, PLAYER_SPAWN_Y)], -1), jnp.array([BOSS_SPAWN])])
-    heading = jnp.concatenate([jnp.full(n_players, jnp.pi / 2), jnp.array([-jnp.pi / 2])])
+    if params.config.random_spawns:
+        pos, heading = random_spawns(jax.random.fold_in(key, 1), params)  # fold_in: the other draws stay put
+    else:
+        xs = (jnp.arange(n_players) - (n_players - 1) / 2) * PLAYER_SPACING
+        pos = jnp.concatenate([jnp.stack([xs, jnp.full(n_players, PLAYER_SPAWN_Y)], -1), jnp.array([BOSS_SPAWN])])
+        heading = jnp.concatenate([jnp.full(n_players, jnp.pi / 2), jnp.array([-jnp.pi / 2])])
     alive = st.max_hp > 0
     state = State(
         pos=pos.astype(jnp.float32),
@@ -88,6 +93,21 @@ def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
     )
     state = state.replace(target=state.target.at[n_players].set(movement.nearest_alive_player(state)))
     return observe(state, params), state
+
+
+def random_spawns(key: jax.Array, params: Params) -> tuple[jax.Array, jax.Array]:
+    """Spawn positions ``float32[U, 2]`` and headings ``float32[U]`` drawn uniformly: players in the
+    arena's lower half (y <= 0), the boss in its upper half (y >= 0), every disc inside the walls,
+    headings in [-pi, pi). Used by ``reset`` when ``EnvConfig.random_spawns`` is on."""
+    u_n = params.team.shape[-1]
+    k_pos, k_heading = jax.random.split(key)
+    lim = HALF_ARENA - params.stats.radius  # [U]
+    unit = jax.random.uniform(k_pos, (u_n, 2))
+    x = (2 * unit[:, 0] - 1) * lim
+    is_boss = jnp.arange(u_n) == u_n - 1
+    y = jnp.where(is_boss, unit[:, 1], -unit[:, 1]) * lim
+    heading = jax.random.uniform(k_heading, (u_n,), minval=-jnp.pi, maxval=jnp.pi)
+    return jnp.stack([x, y], -1), heading
 
 
 def _boss_still_ticks(state: State, params: Params, n_ticks: int) -> jnp.ndarray:

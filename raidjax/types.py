@@ -82,6 +82,9 @@ class EnvConfig:
             fire on the first tick they are below 0 (0.1 s lasts 6 ticks, 1.0 s 51); otherwise a
             timer of T seconds lasts exactly T.
         ties_are_losses: the boss and the last player dying in the same tick is a loss (else a win).
+        random_spawns: every episode draws each unit's position and heading (players in the
+            arena's lower half, the boss in its upper half, inside the walls; headings uniform)
+            instead of the fixed spawn; off in both rule sets (the reference spawns are fixed).
 
     Raises:
         ValueError: on construction (``EnvConfig(...)``, ``replace``, ``from_rules``), one line naming
@@ -103,6 +106,7 @@ class EnvConfig:
     one_step_area: bool = struct.field(pytree_node=False, default=True)
     unity_timers: bool = struct.field(pytree_node=False, default=True)
     ties_are_losses: bool = struct.field(pytree_node=False, default=True)
+    random_spawns: bool = struct.field(pytree_node=False, default=False)
 
     def __post_init__(self):
         """Validate every field on construction (``EnvConfig(...)``, ``replace``, ``from_rules``),
@@ -120,7 +124,7 @@ class EnvConfig:
         if fixed["obs_projectiles"] > fixed["max_projectiles"]:
             raise ValueError(f"obs_projectiles: value {fixed['obs_projectiles']} exceeds max_projectiles "
                              f"{fixed['max_projectiles']}; allowed: a whole number in [1, max_projectiles]")
-        for name in RULE_SWITCHES:
+        for name in (*RULE_SWITCHES, "random_spawns"):
             fixed[name] = validate.flag(name, getattr(self, name))
         for name, value in fixed.items():  # frozen: set through object (hash and == see Python values)
             object.__setattr__(self, name, value)

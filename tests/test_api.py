@@ -216,3 +216,26 @@ def test_lax_scan_rollout_matches_python_loop_and_compiles_once():
     STEP(key, loop, actions[0], p2)
     assert STEP._cache_size() == compiled
 
+
+
+def test_random_spawns_draw_positions_and_headings_in_each_half_and_keep_other_draws():
+    fixed = raidjax.make_params(skill_range=13.0)
+    drawn = raidjax.make_params(skill_range=13.0, config=raidjax.EnvConfig(random_spawns=True))
+    keys = jax.random.split(KEY, 64)
+    _, s = jax.jit(jax.vmap(raidjax.reset, (0, None)))(keys, drawn)
+    pos, heading = np.asarray(s.pos), np.asarray(s.heading)
+    lim = raidjax.types.HALF_ARENA - np.asarray(drawn.stats.radius)
+    assert (np.abs(pos) <= lim[None, :, None] + 1e-6).all()
+    assert (pos[:, :-1, 1] <= 0).all() and (pos[:, -1, 1] >= 0).all()
+    assert len(np.unique(pos.round(4).reshape(64, -1), axis=0)) == 64  # every episode opens elsewhere
+    assert ((heading >= -np.pi) & (heading < np.pi)).all() and heading.std() > 1.0
+    # Each key's spawn spreads over the half: players reach both sides of x = 0 and deep into y < -6.
+    assert (pos[:, :-1, 0] < -6).any() and (pos[:, :-1, 0] > 6).any() and (pos[:, :-1, 1] < -6).any()
+    # The option touches only positions and headings: the other draws of reset are the same.
+    _, f = jax.vmap(raidjax.reset, (0, None))(keys, fixed)
+    np.testing.assert_array_equal(np.asarray(f.orbit_sign), np.asarray(s.orbit_sign))
+    np.testing.assert_array_equal(np.asarray(f.clock), np.asarray(s.clock))
+    assert not np.allclose(np.asarray(f.pos), pos)
+    # The target is the nearest player from the drawn spawns.
+    d = np.linalg.norm(pos[:, :-1] - pos[:, -1:], axis=-1)
+    np.testing.assert_array_equal(np.asarray(s.target)[:, -1], d.argmin(-1))

@@ -41,6 +41,7 @@ def make_rollout(n_arenas: int, n_steps: int):
 
 
 def main() -> None:
+    raidjax.use_recommended_xla_flags()  # raidjax's commands measure with these (raidjax.xla_flags)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--arenas", type=int, default=4096)
     ap.add_argument("--steps", type=int, default=200)

@@ -14,10 +14,12 @@ import json
 import jax
 
 from raidjax.pcg import metrics as pm
+from raidjax.xla_flags import use_recommended_xla_flags
 
 
 def main() -> None:
     """Measure and print one JSON line."""
+    use_recommended_xla_flags()  # raidjax's commands measure with these (raidjax.xla_flags)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--skill", type=float, nargs=4, default=(20.0, 0.5, 1.0, 0.75),
                     help="range, cool time, cast time, coefficient (default: a skill near 50 %% wins)")

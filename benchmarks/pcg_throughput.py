@@ -17,6 +17,7 @@ import jax
 
 from raidjax import pcg
 from raidjax.utils import machine
+from raidjax.xla_flags import use_recommended_xla_flags
 
 
 def make_rollout(params: pcg.PCGParams, n_steps: int):
@@ -39,6 +40,7 @@ def make_rollout(params: pcg.PCGParams, n_steps: int):
 
 def main() -> None:
     """Run the benchmark and print one JSON line."""
+    use_recommended_xla_flags()  # raidjax's commands measure with these (raidjax.xla_flags)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--envs", type=int, default=8, help="generator episodes stepped in parallel")
     ap.add_argument("--n-games", type=int, default=100)

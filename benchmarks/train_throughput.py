@@ -22,6 +22,7 @@ import jax
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script from anywhere
 from raidjax.utils import machine
+from raidjax.xla_flags import use_recommended_xla_flags
 from trainers.config import PRESETS  # noqa: E402
 from trainers.mapoca import make_trainer  # noqa: E402
 
@@ -57,6 +58,7 @@ def bench(preset: str, repeats: int, **overrides) -> dict:
 
 def main() -> None:
     """Parse flags, run the benchmarks, print one JSON object."""
+    use_recommended_xla_flags()  # raidjax's commands measure with these (raidjax.xla_flags)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--presets", nargs="+", default=["paper", "cpu"], choices=sorted(PRESETS))
     ap.add_argument("--repeats", type=int, default=3)

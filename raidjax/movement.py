@@ -6,6 +6,8 @@ All functions act on one arena (unbatched); ``U`` units, the boss last.
 
 from __future__ import annotations
 
+import math
+
 import jax.numpy as jnp
 
 from raidjax import heuristic
@@ -25,7 +27,7 @@ from raidjax.types import (
 from raidjax.utils import pick
 
 DRAG = 0.92  # velocity factor per tick
-TURN_RATE = jnp.deg2rad(200.0)  # rad/s
+TURN_RATE = math.radians(200.0)  # rad/s (a Python float: importing raidjax must not start a JAX backend)
 STRAFE_FACTOR = 0.75
 BOSS_STOP_DISTANCE = 1.6  # the boss stops chasing this close to its target
 MOVING_SPEED = 0.5  # a unit displaced faster than this (units/s) counts as moving

@@ -123,9 +123,13 @@ def whole_number_arg(low: int = 1):
 def run_cli(main, errors: tuple[type[BaseException], ...] = (ValueError,), interrupted: str = "") -> None:
     """Run a command line's ``main()`` the way users expect: a user's mistake (``errors``) prints
     ``error: <message>`` on one line and exits 2; Ctrl-C prints one line (with ``interrupted``, e.g.
-    how to resume) and exits 130. ``RAIDJAX_DEBUG=1`` re-raises with the traceback."""
+    how to resume) and exits 130. ``RAIDJAX_DEBUG=1`` re-raises with the traceback. Before
+    ``main`` runs, the process gets raidjax's recommended XLA flags (``raidjax.xla_flags``)."""
     import sys
 
+    from raidjax.xla_flags import use_recommended_xla_flags
+
+    use_recommended_xla_flags()
     try:
         main()
     except errors as e:

@@ -20,6 +20,10 @@ from hypothesis import HealthCheck, settings  # noqa: E402
 
 import raidjax  # noqa: E402
 
+# The suite runs with the flags raidjax's commands use (subprocesses inherit them); importing
+# raidjax does not set them, and this runs before any test's first JAX computation.
+raidjax.use_recommended_xla_flags()
+
 settings.register_profile(
     "raidjax", max_examples=15, deadline=None, derandomize=True,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],

@@ -231,14 +231,33 @@ print("finished")
 
 def test_vmapped_learners_do_not_deadlock_xla_cpu():
     """Two vmapped PPO-PCGRL learners (a scan of playtest while-loops) used to deadlock in
-    XLA:CPU's concurrency-optimised scheduler; raidjax switches it off at import. Run in a
-    subprocess so that a regression fails on the timeout instead of hanging the suite."""
+    XLA:CPU's concurrency-optimised scheduler (in about half the runs); the recommended flags
+    switch it off, and make_train warns when they are missing. Run in a fresh subprocess that
+    opts in itself, so that a regression fails on the timeout instead of hanging the suite."""
     import os
     import subprocess
     import sys
 
-    env = {k: v for k, v in os.environ.items() if k != "RAIDJAX_KEEP_XLA_FLAGS"}
+    env = {k: v for k, v in os.environ.items() if k not in ("RAIDJAX_KEEP_XLA_FLAGS", "XLA_FLAGS")}
     env["PYTHONPATH"] = os.pathsep.join([os.getcwd(), env.get("PYTHONPATH", "")])
-    out = subprocess.run([sys.executable, "-c", "import raidjax\n" + _VMAPPED_LEARNERS], env=env,
+    code = "import raidjax\nassert raidjax.use_recommended_xla_flags()\n" + _VMAPPED_LEARNERS
+    out = subprocess.run([sys.executable, "-W", "error::RuntimeWarning", "-c", code], env=env,
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0 and "finished" in out.stdout, out.stderr[-2000:]
+
+
+def test_make_train_warns_on_cpu_without_the_scheduler_flag(monkeypatch):
+    import warnings
+
+    from raidjax import xla_flags
+    from trainers.ppo_pcgrl import get_config, make_train
+
+    monkeypatch.setenv("XLA_FLAGS", "")
+    if not xla_flags.missing():
+        pytest.skip("jaxlib < 0.10 has no such flag")
+    with pytest.warns(RuntimeWarning, match="use_recommended_xla_flags"):
+        make_train(get_config("cpu"))
+    monkeypatch.setenv("XLA_FLAGS", " ".join(xla_flags.RECOMMENDED))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        make_train(get_config("cpu"))

@@ -10,6 +10,7 @@ the same update in chunks with progress, metrics and checkpoints::
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from functools import cache
 from typing import Any, NamedTuple
 
@@ -19,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from raidjax import pcg
+from raidjax import pcg, xla_flags
 from trainers.config import check_fields, known_fields
 
 
@@ -179,7 +180,15 @@ def make_train(config: PPOConfig):
         (runner, metrics)`` (one PPO update). ``runner`` is a dict pytree (``params``,
         ``opt_state``, ``env_state``, ``obs``, ``key`` data, ``update``); ``metrics`` holds
         per-update scalars (leading axis ``num_updates`` in ``train``).
+
+    Warns (``RuntimeWarning``) on CPU when ``XLA_FLAGS`` lacks
+    ``--xla_cpu_enable_concurrency_optimized_scheduler=false``: several learners vmapped together
+    can deadlock XLA:CPU without it (``raidjax.use_recommended_xla_flags``).
     """
+    if any("concurrency_optimized" in f for f in xla_flags.missing()) and jax.default_backend() == "cpu":
+        warnings.warn("vmapping several PPO-PCGRL learners can deadlock XLA:CPU's concurrency-optimised "
+                      "scheduler; call raidjax.use_recommended_xla_flags() before the first JAX computation "
+                      "(raidjax.xla_flags)", RuntimeWarning, stacklevel=2)
     net = ActorCritic(tuple(config.hidden))
     batch = config.n_arenas * config.n_steps
     mb = batch // config.n_minibatches

@@ -1,0 +1,54 @@
+"""``import raidjax`` leaves the process alone; ``use_recommended_xla_flags`` is an explicit opt-in."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from raidjax import xla_flags
+
+
+def run(code: str, **env: str) -> str:
+    base = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "RAIDJAX_KEEP_XLA_FLAGS")}
+    out = subprocess.run([sys.executable, "-c", code], env={**base, **env}, capture_output=True, text=True,
+                         timeout=120, cwd=os.path.dirname(os.path.dirname(__file__)))
+    assert out.returncode == 0, out.stderr[-2000:]
+    return out.stdout.strip()
+
+
+def test_import_changes_no_flag_and_starts_no_backend():
+    code = ("import os, raidjax, trainers.mapoca, trainers.ppo_pcgrl, experiments.benchmark1, experiments.benchmark2\n"
+            "from jax._src import xla_bridge\n"
+            "print(repr(os.environ.get('XLA_FLAGS')), xla_bridge.backends_are_initialized())")
+    assert run(code) == "None False"
+    assert run(code, XLA_FLAGS="--xla_dump_to=/nowhere") == "'--xla_dump_to=/nowhere' False"
+
+
+def test_opt_in_appends_what_is_missing_and_keeps_the_users_values():
+    assert xla_flags.with_recommended("") == " ".join(xla_flags.RECOMMENDED)
+    mine = "--xla_cpu_enable_concurrency_optimized_scheduler=true --xla_force_host_platform_device_count=4"
+    assert xla_flags.with_recommended(mine) == mine + " " + xla_flags.RECOMMENDED[0]
+    code = "import os, raidjax\nprint(raidjax.use_recommended_xla_flags(), os.environ['XLA_FLAGS'])"
+    assert run(code) == "True " + " ".join(xla_flags.RECOMMENDED)
+    assert run(code, RAIDJAX_KEEP_XLA_FLAGS="1", XLA_FLAGS="-x") == "False -x"
+
+
+def test_too_late_warns_and_changes_nothing():
+    code = ("import os, warnings, jax, raidjax\njax.numpy.zeros(1).block_until_ready()\n"
+            "with warnings.catch_warnings(record=True) as w:\n    warnings.simplefilter('always')\n"
+            "    ok = raidjax.use_recommended_xla_flags()\n"
+            "print(ok, os.environ.get('XLA_FLAGS'), 'already started' in str(w[0].message))")
+    assert run(code) == "False None True"
+
+
+@pytest.mark.parametrize("module", ["trainers.mapoca_cli", "experiments.benchmark1"])
+def test_commands_run_with_the_flags(module, tmp_path):
+    """raidjax's command lines opt in before JAX starts (through ``raidjax.utils.run_cli``)."""
+    code = (f"import os, sys, {module} as m\nfrom jax._src import xla_bridge\n"
+            "sys.argv = ['x', '--help']\n"
+            "try:\n    m.cli() if hasattr(m, 'cli') else m.main()\nexcept SystemExit:\n    pass\n"
+            "print(os.environ.get('XLA_FLAGS'))")
+    assert run(code).splitlines()[-1] == " ".join(xla_flags.RECOMMENDED)

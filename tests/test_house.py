@@ -149,6 +149,8 @@ def test_each_layer_imports_only_what_its_install_provides():
                "experiments": core | _extra(project, "experiments")}
     for name in ("trainers.plot", "trainers.runfolder"):  # figures, imported only when drawing: [experiments]
         allowed[name] = allowed["trainers"] | {"matplotlib"}
+    for name in ("jaxmarl", "gymnax"):  # each wrapper needs its own extra
+        allowed[f"raidjax.wrappers.{name}"] = core | _extra(project, name)
     bad = []
     for name, path in _modules().items():
         layer = allowed.get(name, allowed[name.split(".")[0]])

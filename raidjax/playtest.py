@@ -18,6 +18,7 @@ from raidjax import validate
 from raidjax.env import next_episode, reset, step
 from raidjax.logs import HEATMAP_BINS, episode_summary, grid_cell
 from raidjax.observation import observe
+from raidjax.sharding import shard_batch
 from raidjax.types import RUNNING, Params
 
 Policy = Callable  # policy(key, obs, state, params) -> int32[P], or policy(weights, key, obs, state, params)
@@ -122,7 +123,9 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_games: int, fol
     Returns ``(final state, acc)``."""
     fold = fold or (lambda a, _: a)
     k_reset, k_play = jax.random.split(key)
+    batch = shard_batch(batch, n_games)  # games are independent: spread them over every device
     _, state = jax.vmap(reset)(jax.random.split(k_reset, n_games), batch)
+    state = shard_batch(state, n_games)
     if batch.config.chains_episodes:
         k_warm, k_next = jax.random.split(jax.random.fold_in(key, 1))
         state, _ = _play_until_done(k_warm, state, batch, policy, n_games, lambda a, _: a, None)
@@ -143,6 +146,10 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weigh
     cooldowns, the 2023 reset exception), so every arena plays a discarded warm-up game first
     and the measured game is its next episode (about twice the cost; see docs/GAME.md). Under
     the ``"clean"`` rules every game is an arena's first.
+
+    With several devices (GPUs, hosts after ``jax.distributed.initialize()``), the games are
+    split evenly over all of them when ``n_games`` is a multiple of the device count
+    (``raidjax.sharding``); the results are the same as on one device.
 
     Args:
         key: PRNG key (typed or a legacy ``uint32[2]`` key).

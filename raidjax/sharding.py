@@ -49,3 +49,23 @@ def shard_batch(tree, n: int):
         return x
 
     return jax.tree.map(one, tree)
+
+
+def put_batch(tree, n: int):
+    """Outside ``jit``: place every leaf of ``tree`` with leading axis ``n`` split over the devices
+    (``batch_sharding``), so that a program jitted on it (seeds or runs of a trainer, vmapped)
+    runs spread over all of them; single-device runs and uneven counts are returned unchanged.
+
+    Args:
+        tree: a pytree of arrays (e.g. a trainer's vmapped state, leading axis ``n``).
+        n: the batch size.
+
+    Returns:
+        ``tree`` on the devices.
+    """
+    sharding = batch_sharding(n)
+    if sharding is None:
+        return tree
+    replicated = NamedSharding(sharding.mesh, PartitionSpec())
+    return jax.tree.map(lambda x: jax.device_put(x, sharding if getattr(x, "ndim", 0) >= 1 and x.shape[0] == n
+                                                 else replicated), tree)

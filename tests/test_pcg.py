@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from helpers import pcg_state as _state
 
-from raidjax import pcg
+import raidjax
+from raidjax import pcg, policies
 from raidjax.pcg import metrics as pm
 
 LOW, HIGH = np.array(pcg.LOW), np.array(pcg.HIGH)
@@ -261,3 +262,42 @@ def test_make_train_warns_on_cpu_without_the_scheduler_flag(monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         make_train(get_config("cpu"))
+
+
+def heuristic_with_weights(weights, key, obs, state, params):
+    """PT-HR through the policy-with-weights interface (the weights only scale nothing)."""
+    return policies.heuristic(key, obs, state, params) * weights["one"]
+
+
+def test_generator_with_a_tester_given_through_the_weights_interface():
+    """PT-HR passed as a policy with weights plays exactly as the default tester; a trained-team
+    policy (MA-POCA's, here with fresh weights) plays inside the jitted generator step, and other
+    weights of the same shapes reuse the compiled step."""
+    from trainers.config import load_config
+    from trainers.mapoca import TeamPolicy
+    from trainers.networks import Actor
+
+    key = jax.random.key(4)
+    skill = jnp.asarray([12.0, 0.5, 0.8, 0.9])
+    # The clean rules play no warm-up game: half the program to compile.
+    clean = lambda p: p.replace(game=p.game.replace(config=raidjax.EnvConfig.from_rules("clean")))
+    default = clean(pcg.make_pcg_params(n_games=16))
+    same = clean(pcg.make_pcg_params(n_games=16, tester=heuristic_with_weights, tester_weights={"one": jnp.int32(1)}))
+
+    @jax.jit
+    def play(params, key):  # what every generator step measures
+        return pcg.play_outcomes(key, params.game, skill, params.n_games, params.tester, params.tester_weights)
+
+    np.testing.assert_array_equal(np.asarray(play(default, key)), np.asarray(play(same, key)))
+
+    cfg = load_config("cpu")
+    team = TeamPolicy(Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention), deterministic=True)
+    init = jax.jit(lambda k: team.actor.init(k, raidjax.reset(k, default.game)[0]))
+    weights = [init(jax.random.key(s)) for s in (0, 1)]
+    learned = [clean(pcg.make_pcg_params(n_games=16, tester=team, tester_weights=w)) for w in weights]
+    before = play._cache_size()
+    wins = [np.asarray(play(p, key)) for p in learned]
+    assert play._cache_size() == before + 1
+    assert all(w.shape == (16,) and w.dtype == bool for w in wins)
+    with pytest.raises(ValueError, match="policy"):
+        pcg.make_pcg_params(tester=[1])

@@ -3,8 +3,9 @@ pytrees and pure ``reset`` / ``step`` / ``step_autoreset``.
 
 A generator edits the players' shared skill slot 1 (range, cool time, cast time, coefficient;
 projectile speed 10, cost 1, the rest as the reference mage) and is paid for moving the win
-rate that PT-HR reaches with it, measured over ``n_games`` games *inside* the jitted step,
-toward a target win rate.
+rate that the playtesting team reaches with it, measured over ``n_games`` games *inside* the
+jitted step, toward a target win rate. The team is PT-HR (the paper's) unless
+``PCGParams.tester`` names another policy, e.g. a trained MA-POCA team with its weights.
 
 Episode start (our choice for "no reward on the first measurement"): ``reset`` draws the skill
 uniformly within the bounds and the target (fixed, or uniform in ``[target_low, target_high]``),
@@ -29,6 +30,8 @@ its own batch of ``n_games`` playtests.
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -37,7 +40,7 @@ from flax import struct
 
 from raidjax import policies
 from raidjax.content import make_params, with_player_skill
-from raidjax.playtest import playtest
+from raidjax.playtest import check_args, playtest
 from raidjax.types import WIN, Params
 
 PARAM_NAMES = ("range", "cool_time", "cast_time", "coefficient")
@@ -90,6 +93,12 @@ class PCGParams:
             0-signed parameter gets its own coin. The observation then ends with the scaled offset
             ``(goal - skill) / (high - low)``. ``HEAVY_VS_LIGHT`` has two strengthening and two
             weakening parameters (``EASIER``), so both ends suit any target.
+        tester: the playtesting team (static): a hashable ``policy(key, obs, state, params) ->
+            int32[P]`` (default PT-HR, ``raidjax.policies.heuristic``, the paper's), or, with
+            ``tester_weights``, ``policy(weights, key, obs, state, params)`` (e.g. a trained
+            MA-POCA team from ``trainers.mapoca.load_policy``).
+        tester_weights: ``None``, or the tester's weights (a pytree of arrays, traced: other
+            weights of the same shapes reuse the compiled step).
     """
 
     game: Params
@@ -102,6 +111,8 @@ class PCGParams:
     observe_target: bool = struct.field(pytree_node=False, default=True)
     pool_repeats: bool = struct.field(pytree_node=False, default=False)
     goal_axis: tuple[int, ...] | None = struct.field(pytree_node=False, default=None)
+    tester: Callable = struct.field(pytree_node=False, default=policies.heuristic)
+    tester_weights: Any = None
 
 
 @struct.dataclass
@@ -176,14 +187,14 @@ def axis_arg(text: str) -> tuple[int, ...]:
 def make_pcg_params(
     *, target: float | tuple[float, float] = (0.1, 0.7), n_games: int = 100, max_edits: int = 40,
     band: float = 0.02, strict_length: bool = False, observe_target: bool = True, pool_repeats: bool = False,
-    goal_axis: tuple[int, ...] | None = None,
+    goal_axis: tuple[int, ...] | None = None, tester: Callable = policies.heuristic, tester_weights: Any = None,
 ) -> PCGParams:
     """Build ``PCGParams`` on the host.
 
     Args:
         target: a fixed target win rate, or ``(low, high)`` to draw one uniformly per episode.
-        n_games, max_edits, band, strict_length, observe_target, pool_repeats, goal_axis: see
-            ``PCGParams``.
+        n_games, max_edits, band, strict_length, observe_target, pool_repeats, goal_axis, tester,
+            tester_weights: see ``PCGParams``.
 
     Returns:
         ``PCGParams``.
@@ -197,9 +208,12 @@ def make_pcg_params(
     if n_games < 1 or max_edits < 1:
         raise ValueError(f"n_games={n_games}, max_edits={max_edits}: both must be >= 1")
     f = lambda x: np.float32(x)
-    return PCGParams(game=base_game(), target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
+    game = base_game()
+    check_args(game, n_games, tester, tester_weights)  # a hashable callable; weights a pytree of arrays
+    return PCGParams(game=game, target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
                      max_edits=max_edits, strict_length=strict_length, observe_target=observe_target,
-                     pool_repeats=pool_repeats, goal_axis=check_axis(goal_axis))
+                     pool_repeats=pool_repeats, goal_axis=check_axis(goal_axis), tester=tester,
+                     tester_weights=tester_weights)
 
 
 def skill_params(game: Params, skill: jax.Array) -> Params:
@@ -207,15 +221,19 @@ def skill_params(game: Params, skill: jax.Array) -> Params:
     return with_player_skill(game, **dict(zip(PARAM_NAMES, skill, strict=True)))
 
 
-def play_outcomes(key: jax.Array, game: Params, skill: jax.Array, n_games: int) -> jax.Array:
-    """PT-HR plays ``n_games`` games with ``skill`` (``float32[4]``); returns ``bool[n_games]`` wins
-    (draws and losses are ``False``)."""
-    return playtest(key, skill_params(game, skill), policies.heuristic, n_games)["outcome"] == WIN
+def play_outcomes(key: jax.Array, game: Params, skill: jax.Array, n_games: int, tester: Callable = policies.heuristic,
+                  tester_weights: Any = None) -> jax.Array:
+    """``tester`` (default PT-HR; with ``tester_weights`` as in ``PCGParams``) plays ``n_games`` games
+    with ``skill`` (``float32[4]``); returns ``bool[n_games]`` wins (draws and losses are ``False``)."""
+    results = playtest(key, skill_params(game, skill), tester, n_games, weights=tester_weights)
+    return results["outcome"] == WIN
 
 
 def measure(key: jax.Array, params: PCGParams, skill: jax.Array, n_games: int | None = None) -> jax.Array:
-    """Win rate ``float32[]`` of ``skill`` over ``n_games`` (default ``params.n_games``) PT-HR games."""
-    return jnp.mean(play_outcomes(key, params.game, skill, n_games or params.n_games).astype(jnp.float32))
+    """Win rate ``float32[]`` of ``skill`` over ``n_games`` (default ``params.n_games``) games of
+    ``params.tester``."""
+    wins = play_outcomes(key, params.game, skill, n_games or params.n_games, params.tester, params.tester_weights)
+    return jnp.mean(wins.astype(jnp.float32))
 
 
 def apply_action(skill: jax.Array, action: jax.Array) -> jax.Array:

@@ -33,6 +33,9 @@ class Config:
         hidden, layers, heads: network width, MLP depth, attention heads (actor and critic).
         proj_attention: the actor attends over projectiles as entities (else they join its
             self features; cheaper on CPU).
+        bf16: mixed precision: the networks' layers compute in bfloat16 (parameters, attention
+            softmaxes, outputs, losses and Adam stay float32; ``trainers.networks``). Meant for
+            GPUs; on CPUs without bfloat16 units it is slower.
         skill_ranges: skill-slot-1 range of every player, drawn from this set (one draw per arena,
             shared by its players).
         redraw_every: an arena draws a new range at its start and then after every
@@ -62,6 +65,7 @@ class Config:
     layers: int = 2
     heads: int = 4
     proj_attention: bool = True
+    bf16: bool = False
     skill_ranges: tuple[float, ...] = (13.0,)
     redraw_every: int = 2
     total_steps: int = 1_000_000

@@ -263,8 +263,9 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     base = raidjax.make_params(skill_range=cfg.skill_ranges[0]) if base_params is None else base_params
     default_set = range_table(cfg.skill_ranges)
     multi_range = len(cfg.skill_ranges) > 1 if redraw_ranges is None else redraw_ranges
-    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention)
-    critic = Critic(cfg.hidden, cfg.layers, cfg.heads)
+    dtype = jnp.bfloat16 if cfg.bf16 else jnp.float32
+    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, dtype)
+    critic = Critic(cfg.hidden, cfg.layers, cfg.heads, dtype)
     n, t_len = cfg.n_arenas, cfg.n_steps
     if cfg.redraw_every < 1:
         raise ValueError(f"redraw_every: value {cfg.redraw_every} must be >= 1 (episodes per range draw)")
@@ -415,5 +416,5 @@ def load_policy(path: str | Path, seed: int = 0, deterministic: bool | None = No
     if not 0 <= seed < n_seeds:
         raise checkpoint.CheckpointError(f"seed: {seed} not in the checkpoint's {n_seeds} seeds")
     weights = jax.tree.map(lambda x: jnp.asarray(x[seed]), weights)
-    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention)
+    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, jnp.bfloat16 if cfg.bf16 else jnp.float32)
     return TeamPolicy(actor, cfg.deterministic_eval if deterministic is None else bool(deterministic)), weights

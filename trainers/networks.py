@@ -5,12 +5,19 @@ Shapes: ``P`` players, ``A = raidjax.types.N_ACTIONS`` actions, ``H`` hidden wid
 leading batch axes. Every module takes a ``raidjax.Observation`` whose fields carry the player
 axis ``P`` right after the batch axes (as ``raidjax.step`` returns them).
 
+Mixed precision: with ``dtype=jnp.bfloat16`` every Dense and LayerNorm computes in bfloat16
+(XLA accumulates matmuls in float32 on GPUs and TPUs) while the parameters stay float32; attention
+logits, softmaxes and the outputs (logits, values) are float32, so the losses and the optimizer
+never see bfloat16.
+
 Dead players are handled by masks, never by zero inputs alone: a dead teammate (actor) and a
 dead agent (critic) are removed from attention keys and from the mean-pools, so the network
 cannot tell a dead player from "no player" and can never mistake zeros for a live state.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import flax.linen as nn
 import jax
@@ -43,11 +50,12 @@ class ResidualSelfAttention(nn.Module):
 
     features: int
     heads: int = 4
+    dtype: Any = jnp.float32
 
     def setup(self):
-        self.norm = nn.LayerNorm()
-        self.qkv = nn.Dense(3 * self.features)
-        self.out = nn.Dense(self.features)
+        self.norm = nn.LayerNorm(dtype=self.dtype)
+        self.qkv = nn.Dense(3 * self.features, dtype=self.dtype)
+        self.out = nn.Dense(self.features, dtype=self.dtype)
 
     def project(self, x: jax.Array) -> jax.Array:
         """Per-token ``qkv: [..., N, 3, heads, H / heads]``."""
@@ -59,9 +67,10 @@ class ResidualSelfAttention(nn.Module):
         q, k, v = qkv[..., 0, :, :], qkv[..., 1, :, :], qkv[..., 2, :, :]
         # Broadcast-multiply-and-sum instead of einsum: XLA:CPU fuses these, while tiny batched
         # matmuls ([N x N] per head) run far slower there.
+        q, k = q.astype(jnp.float32), k.astype(jnp.float32)  # logits and softmax in float32
         logits = jnp.sum(q[..., :, None, :, :] * k[..., None, :, :, :], axis=-1) / jnp.sqrt(q.shape[-1])
         logits = logits + jnp.where(mask, 0.0, NEG)[..., None, :, None]  # [..., q, k, heads]
-        w = jax.nn.softmax(logits, axis=-2)
+        w = jax.nn.softmax(logits, axis=-2).astype(v.dtype)
         att = jnp.sum(w[..., None] * v[..., None, :, :, :], axis=-3).reshape(x.shape)
         return masked_mean(x, mask) + self.out(masked_mean(att, mask))
 
@@ -75,11 +84,12 @@ class MLP(nn.Module):
 
     hidden: int
     layers: int
+    dtype: Any = jnp.float32
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         for _ in range(self.layers):
-            x = nn.relu(nn.Dense(self.hidden)(x))
+            x = nn.relu(nn.Dense(self.hidden, dtype=self.dtype)(x))
         return x
 
 
@@ -101,27 +111,28 @@ class Actor(nn.Module):
     layers: int = 2
     heads: int = 4
     proj_attention: bool = True
+    dtype: Any = jnp.float32
 
     @nn.compact
     def __call__(self, obs: Observation) -> jax.Array:
-        h = self.hidden
+        h, dt = self.hidden, self.dtype
         self_parts = [obs.self_features, obs.boss, obs.walls]
         if not self.proj_attention:
             lead = obs.projectile_mask.shape
             self_parts += [obs.projectiles.reshape(*lead[:-1], -1), obs.projectile_mask.astype(jnp.float32)]
-        s = nn.relu(nn.Dense(h, name="self_enc")(jnp.concatenate(self_parts, axis=-1)))
+        s = nn.relu(nn.Dense(h, dtype=dt, name="self_enc")(jnp.concatenate(self_parts, axis=-1)))
         # Entity embeddings see the self encoding (as ML-Agents' EntityEmbedding does).
-        ctx = nn.Dense(h, use_bias=False, name="self_ctx")(s)[..., None, :]
-        ents = nn.relu(nn.Dense(h, name="mate_emb")(obs.teammates) + ctx)
+        ctx = nn.Dense(h, use_bias=False, dtype=dt, name="self_ctx")(s)[..., None, :]
+        ents = nn.relu(nn.Dense(h, dtype=dt, name="mate_emb")(obs.teammates) + ctx)
         mask = obs.teammate_mask
         if self.proj_attention:
-            projs = nn.relu(nn.Dense(h, name="proj_emb")(obs.projectiles) + ctx)
+            projs = nn.relu(nn.Dense(h, dtype=dt, name="proj_emb")(obs.projectiles) + ctx)
             ents = jnp.concatenate([ents, projs], axis=-2)
             mask = jnp.concatenate([mask, obs.projectile_mask], axis=-1)
-        pooled = ResidualSelfAttention(h, self.heads, name="rsa")(ents, mask)
-        x = MLP(h, self.layers, name="body")(jnp.concatenate([s, pooled], axis=-1))
-        logits = nn.Dense(N_ACTIONS, kernel_init=nn.initializers.orthogonal(0.01), name="pi")(x)
-        return masked_logits(logits, obs.action_mask)
+        pooled = ResidualSelfAttention(h, self.heads, dt, name="rsa")(ents, mask)
+        x = MLP(h, self.layers, dt, name="body")(jnp.concatenate([s, pooled], axis=-1))
+        logits = nn.Dense(N_ACTIONS, kernel_init=nn.initializers.orthogonal(0.01), dtype=dt, name="pi")(x)
+        return masked_logits(logits.astype(jnp.float32), obs.action_mask)
 
 
 def critic_inputs(obs: Observation) -> jax.Array:
@@ -145,18 +156,20 @@ class Critic(nn.Module):
     hidden: int = 64
     layers: int = 2
     heads: int = 4
+    dtype: Any = jnp.float32
 
     def setup(self):
-        self.obs_emb = nn.Dense(self.hidden)
-        self.obs_act_emb = nn.Dense(self.hidden)
-        self.rsa = ResidualSelfAttention(self.hidden, self.heads)
-        self.body = MLP(self.hidden, self.layers)
-        self.value_head = nn.Dense(1)
-        self.baseline_head = nn.Dense(1)
+        dt = self.dtype
+        self.obs_emb = nn.Dense(self.hidden, dtype=dt)
+        self.obs_act_emb = nn.Dense(self.hidden, dtype=dt)
+        self.rsa = ResidualSelfAttention(self.hidden, self.heads, dt)
+        self.body = MLP(self.hidden, self.layers, dt)
+        self.value_head = nn.Dense(1, dtype=dt)
+        self.baseline_head = nn.Dense(1, dtype=dt)
 
     def _head(self, pooled: jax.Array, mask: jax.Array, head) -> jax.Array:
         count = jnp.sum(mask, axis=-1, keepdims=True).astype(pooled.dtype) / mask.shape[-1]
-        return head(self.body(jnp.concatenate([pooled, count], axis=-1)))[..., 0]
+        return head(self.body(jnp.concatenate([pooled, count], axis=-1)))[..., 0].astype(jnp.float32)
 
     def value(self, obs: Observation) -> jax.Array:
         """V(s) over the alive agents: ``obs [..., P, ...]`` -> ``float32[...]``."""

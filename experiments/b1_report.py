@@ -3,10 +3,16 @@
 Writes ``tables/win_rate.md``, ``tables/robustness.md``, ``csv/win_rate_table.csv``,
 ``csv/robustness.csv``, ``figures/adjusted_score.png``, ``figures/heatmaps.png`` and
 ``figures/training.png`` (training win rates, mean and range over seeds); each table
-puts our numbers beside the paper's.
+puts our numbers beside the paper's. ``python -m experiments.b1_report RUN_DIR`` redraws a
+finished run's ``figures/heatmaps.png`` from its ``heatmaps.npz`` alone.
 """
 
 from __future__ import annotations
+
+import io
+import json
+import sys
+from pathlib import Path
 
 import matplotlib
 
@@ -14,6 +20,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from raidjax.env import BOSS_SPAWN, PLAYER_SPACING, PLAYER_SPAWN_Y  # noqa: E402
+from raidjax.types import HALF_ARENA  # noqa: E402
+from raidjax.utils import atomic_write  # noqa: E402
 from trainers.runfolder import RunFolder, markdown_table  # noqa: E402
 
 # GAME.md §9 (the paper's Table "Win rate between MARL and Heuristic agent", 500 games)
@@ -25,6 +34,7 @@ PAPER_ADJUSTED = {"MA-POCA1": (0.004, 0.553, 0.597, 0.597, 0.506), "MA-POCA2": (
                   "PT-HR": (0.013, 0.115, 0.890, 0.868, 0.441)}
 TABLE_RANGES = (5.0, 9.0, 13.0, 17.0)
 TEST_RANGES = (3.0, 4.0, 19.0, 20.0)
+HEATMAP_DPI = 110
 
 
 def _rates(cells: list[dict], agent: str, content: str, rng: float) -> np.ndarray:
@@ -108,19 +118,88 @@ def robustness(rf: RunFolder, cells: list[dict]) -> dict:
     return {"adjusted_score_test_avg": scores, "population_win_rate": {f"{r:g}": float(v) for r, v in pop.items()}}
 
 
-def heatmap_figure(rf: RunFolder) -> None:
-    """MA-POCA1 vs MA-POCA3 team occupancy maps across ranges (from ``heatmaps.npz``)."""
-    d = np.load(rf.path("heatmaps.npz"))
-    maps, agents, ranges = d["maps"].mean(2), d["agents"], d["ranges"]  # team average over players
-    fig, axes = plt.subplots(len(agents), len(ranges), figsize=(2.0 * len(ranges), 2.1 * len(agents)), squeeze=False)
+def heatmap_figure(maps: np.ndarray, agents, ranges, games: int | None = None):
+    """Team occupancy maps, one panel per (agent, skill range), on one shared colour scale.
+
+    Args:
+        maps: ``float[A, R, P, B, B]`` per-player occupancy (``raidjax.playtest_occupancy``,
+            indexed ``[agent, range, player, x_bin, y_bin]``, bins over the arena
+            ``[-HALF_ARENA, HALF_ARENA]`` as ``raidjax.logs.grid_cell`` cuts it), or ``float[A, R, B, B]``
+            maps already averaged over the players.
+        agents: ``A`` agent names (row titles).
+        ranges: ``R`` skill ranges (column titles).
+        games: games per map, for the title (None: not stated).
+
+    Returns:
+        ``(figure, axes)`` with ``axes`` an ``Axes[A, R]`` array. Each panel holds one image, the
+        team mean in percent, ``array[y_bin, x_bin]`` drawn with ``origin="lower"`` over the arena
+        in world units (+x right, +y up); every image has vmin 0 and the same vmax; one colour bar.
+    """
+    maps = np.asarray(maps, float)
+    team = maps.mean(2) if maps.ndim == 5 else maps  # [A, R, B, B]: mean over players
+    n_players = maps.shape[2] if maps.ndim == 5 else None
+    pct = 100.0 * team
+    vmax = float(pct.max()) if pct.max() > 0 else 1.0
+    h, cell = HALF_ARENA, 2 * HALF_ARENA / team.shape[-1]
+    fig, axes = plt.subplots(len(agents), len(ranges), figsize=(2.3 * len(ranges) + 1.2, 2.55 * len(agents) + 1.0),
+                             squeeze=False, sharex=True, sharey=True, layout="constrained")
     for a, agent in enumerate(agents):
         for j, r in enumerate(ranges):
             ax = axes[a, j]
-            ax.imshow(maps[a, j].T, origin="lower", cmap="magma", extent=(-1, 1, -1, 1))
-            ax.set_xticks([])
-            ax.set_yticks([])
-            ax.set_title(f"{agent}, range {r:g}", fontsize=8)
-    rf.save_figure("heatmaps", fig)
+            im = ax.imshow(pct[a, j].T, origin="lower", extent=(-h, h, -h, h), cmap="magma", vmin=0.0, vmax=vmax,
+                           interpolation="nearest")
+            ax.add_patch(plt.Rectangle((-h, -h), 2 * h, 2 * h, fill=False, ec="0.55", lw=2.5))
+            ax.plot([-h, h], [PLAYER_SPAWN_Y] * 2, color="c", lw=0.8, ls="--", label="player spawn row")
+            if n_players:
+                xs = (np.arange(n_players) - (n_players - 1) / 2) * PLAYER_SPACING
+                ax.plot(xs, np.full(n_players, PLAYER_SPAWN_Y), "^", ms=4, mfc="none", mec="c", label="player spawns")
+            ax.plot(*BOSS_SPAWN, "o", ms=6, mfc="none", mec="lime", mew=1.2, label="boss spawn")
+            ax.set(xlim=(-h - 0.6, h + 0.6), ylim=(-h - 0.6, h + 0.6), aspect="equal",
+                   xticks=[-10, -5, 0, 5, 10], yticks=[-10, -5, 0, 5, 10])
+            ax.tick_params(labelsize=7)
+            ax.set_title(f"{agent}, range {float(r):g}", fontsize=8)
+        axes[a, 0].set_ylabel("y (world units)", fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("x (world units)", fontsize=8)
+    fig.colorbar(im, ax=axes, shrink=0.8, label=f"share of alive-player time per {cell:.2f} x {cell:.2f} cell (%)")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    handles.append(plt.Rectangle((0, 0), 1, 1, fill=False, ec="0.55", lw=2.5))
+    labels.append(f"walls (x, y = ±{h:g})")
+    fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=7, frameon=False)
+    games_txt = f"{games} games per map, " if games else ""
+    fig.suptitle("Where the team stands: occupancy of the alive players (team mean)\n"
+                 f"{games_txt}test content; +y up, the boss starts at the top", fontsize=9)
+    return fig, axes
+
+
+def load_heatmaps(path) -> dict:
+    """``heatmaps.npz`` (``experiments.benchmark1.heatmaps``) as ``{"maps": float[A, R, P, B, B],
+    "agents": str[A], "ranges": float[R]}``."""
+    with np.load(path) as d:
+        return {"maps": d["maps"], "agents": [str(a) for a in d["agents"]], "ranges": [float(r) for r in d["ranges"]]}
+
+
+def _heatmap_games(config: dict) -> int | None:
+    """Games per occupancy map recorded in a Benchmark 1 ``config.json`` (None if absent)."""
+    return config.get("budgets", {}).get("heatmap_games")
+
+
+def save_heatmaps(rf: RunFolder) -> None:
+    """Draw ``rf/heatmaps.npz`` (``heatmap_figure``) into ``rf/figures/heatmaps.png``."""
+    fig, _ = heatmap_figure(**load_heatmaps(rf.path("heatmaps.npz")), games=_heatmap_games(rf.config))
+    rf.save_figure("heatmaps", fig, dpi=HEATMAP_DPI)
+
+
+def redraw_heatmaps(run_dir) -> Path:
+    """Redraw ``run_dir/figures/heatmaps.png`` (atomically) from the run's ``heatmaps.npz`` and
+    ``config.json`` alone, without a RunFolder (no training or playtest). Returns the PNG's path."""
+    run_dir = Path(run_dir)
+    games = _heatmap_games(json.loads((run_dir / "config.json").read_text()))
+    fig, _ = heatmap_figure(**load_heatmaps(run_dir / "heatmaps.npz"), games=games)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=HEATMAP_DPI, bbox_inches="tight")
+    plt.close(fig)
+    return atomic_write(run_dir / "figures" / "heatmaps.png", buf.getvalue())
 
 
 def training_figure(rf: RunFolder) -> None:
@@ -153,6 +232,10 @@ def report(rf: RunFolder, cells: list[dict], timing: dict) -> dict:
     """Write every table and figure; returns the summary numbers."""
     means = win_rate_table(rf, cells)
     rob = robustness(rf, cells)
-    heatmap_figure(rf)
+    save_heatmaps(rf)
     training_figure(rf)
     return {"win_rate": means, **rob}
+
+
+if __name__ == "__main__":  # python -m experiments.b1_report RUN_DIR: redraw its heatmaps.png from heatmaps.npz
+    print(redraw_heatmaps(sys.argv[1]))

@@ -1,5 +1,6 @@
 """Benchmark 2 report: controllability, diversity and yield tables beside the paper's numbers,
-and the t-SNE / controllability figures, from the generated skills of ``experiments.benchmark2``.
+and the t-SNE / controllability / error-vs-diversity figures, from the generated skills of
+``experiments.benchmark2``.
 
 Metrics are numpy (``raidjax.pcg_metrics`` through ``trainers.ppo_pcgrl_cli.summarize``); the
 paper's numbers are transcribed from its Tables "controllability" and "diversity" (RaidEnv §5.3).
@@ -211,6 +212,66 @@ def controllability_figure(rows: list[dict]):
     return fig
 
 
+def error_vs_diversity_points(crow: list[dict], drow: list[dict]) -> dict:
+    """The points of ``error_vs_diversity_figure``.
+
+    Args:
+        crow: ``controllability_rows`` (``err_mean`` per method x target, and a ``"mean"`` row).
+        drow: ``diversity_rows`` (``pc1`` per method x target, and a ``"mean"`` row).
+
+    Returns:
+        ``{method: {"target": float[k], "pc1": float[k], "err": float[k], "missing": int,
+        "mean": (pc1, err), "paper": (pc1, err) | None}}``: the ``k`` targets where both numbers
+        are finite, ``missing`` targets left out (no controllability episode, or fewer than 2 kept
+        skills), the ``"mean"`` rows' pair and the paper's (mean PC1 SD, mean error).
+    """
+    out = {}
+    for m in dict.fromkeys(r["method"] for r in crow):
+        err = {round(r["target"], 3): r["err_mean"] for r in crow if r["method"] == m and r["target"] != "mean"}
+        pc1 = {round(r["target"], 3): r["pc1"] for r in drow if r["method"] == m and r["target"] != "mean"}
+        ts = [t for t in sorted(err) if np.isfinite(err[t]) and np.isfinite(pc1.get(t, np.nan))]
+        mean_err = next(r["err_mean"] for r in crow if r["method"] == m and r["target"] == "mean")
+        mean_pc1 = next((r["pc1"] for r in drow if r["method"] == m and r["target"] == "mean"), np.nan)
+        paper = (PAPER_DIVERSITY[m]["mean"][4], PAPER_MEAN_ERROR[m][0]) if m in PAPER_MEAN_ERROR else None
+        out[m] = {"target": np.asarray(ts, float), "pc1": np.asarray([pc1[t] for t in ts], float),
+                  "err": np.asarray([err[t] for t in ts], float), "missing": len(set(err) | set(pc1)) - len(ts),
+                  "mean": (float(mean_pc1), float(mean_err)), "paper": paper}
+    return out
+
+
+def error_vs_diversity_figure(crow: list[dict], drow: list[dict]):
+    """One scatter of controllability error (y) against diversity (x): per method, one small dot
+    per target (labelled with the target), a large diamond for the method's mean (mean PC1 SD over
+    targets, error pooled over targets) and a hollow square for the paper's mean. Lower right is
+    better. ``crow``, ``drow``: ``controllability_rows``, ``diversity_rows``. Returns the figure."""
+    pts = error_vs_diversity_points(crow, drow)
+    fig, ax = plt.subplots(figsize=(6, 4.6))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    missing = 0
+    for i, (m, p) in enumerate(pts.items()):
+        c = colours[i % len(colours)]
+        ax.scatter(p["pc1"], p["err"], s=22, color=c, alpha=0.75, label=f"{m}: per target")
+        for t, x, y in zip(p["target"], p["pc1"], p["err"], strict=True):
+            ax.annotate(f"{t:g}", (x, y), xytext=(3, 2), textcoords="offset points", fontsize=6, color=c)
+        if np.all(np.isfinite(p["mean"])):
+            ax.scatter(*p["mean"], s=110, marker="D", color=c, edgecolor="black", zorder=3, label=f"{m}: mean")
+        if p["paper"] is not None:
+            ax.scatter(*p["paper"], s=80, marker="s", facecolor="none", edgecolor=c, lw=1.5, zorder=3,
+                       label=f"{m}: paper's mean")
+        missing += p["missing"]
+    ax.set_xlabel("diversity: SD of the kept skills along PC1\n(skills with |W_t − W_c| < 0.1, "
+                  "min-max-normalised parameters)", fontsize=8)
+    ax.set_ylabel("controllability error |W_t − W_c|\n(mean over episodes with ≥ 2 edits)", fontsize=8)
+    note = f"; {missing} (method, target) group{'s' * (missing > 1)} lacking a number not shown" if missing else ""
+    ax.set_title(f"Error vs diversity per generator (lower right is better)\n"
+                 f"dots: one per target W_t (labelled){note}", fontsize=9)
+    ax.margins(0.12)
+    ax.set_xlim(left=0)
+    ax.set_ylim(bottom=0)
+    ax.legend(fontsize=7, ncol=len(pts), loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
+    return fig
+
+
 def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300,
            protocol: pm.Protocol | None = None) -> dict:
     """Write the tables, CSVs and figures of Benchmark 2 into ``run``.
@@ -236,6 +297,7 @@ def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300
     run.write_table("diversity", _diversity_md(drow))
     run.write_table("yield", _yield_md(yrow))
     run.save_figure("controllability", controllability_figure(crow), dpi=85)
+    run.save_figure("error_vs_diversity", error_vs_diversity_figure(crow, drow), dpi=90)
     fig, n = tsne_figure(gens, seed, tsne_per_target)
     run.save_figure("tsne", fig, dpi=80)
     run.log(f"report: t-SNE of {n} skills; mean errors " + ", ".join(

@@ -82,3 +82,49 @@ def test_finished_run_resumed_is_a_no_op_and_other_settings_are_refused(run):
         benchmark1.main(["--scale", "smoke", "--out", str(out)])
     with pytest.raises(ValueError, match="other settings .*scale: saved \"smoke\", now \"cpu\""):
         benchmark1.main(["--scale", "cpu", "--out", str(out), "--resume"])
+
+
+def test_heatmap_figure_orientation_shared_scale_and_redraw(tmp_path):
+    """All of one map's occupancy in the south-east corner (x, y = +11.5, -11.5, binned by
+    ``raidjax.logs.occupancy_heatmap``) comes out in that corner of the drawn panel: in the image
+    data (origin lower, world-unit extent) and in the rendered pixels; every panel shares one
+    colour scale; ``redraw_heatmaps`` writes the PNG from a run folder's npz and config alone."""
+    import json
+
+    import jax.numpy as jnp
+    import matplotlib.pyplot as plt
+
+    from experiments import b1_report
+    from raidjax.logs import occupancy_heatmap
+    from raidjax.types import HALF_ARENA
+
+    corner = np.asarray(occupancy_heatmap(jnp.array([[11.5, -11.5]]), jnp.array([True])))  # [x_bin, y_bin]
+    spread = np.full((24, 24), 1 / 24**2)
+    maps = np.stack([np.stack([corner] * 3), np.stack([spread] * 3)])[:, None]  # [2 agents, 1 range, 3, 24, 24]
+    fig, axes = b1_report.heatmap_figure(maps, ["A", "B"], [5.0], games=7)
+    images = [ax.images[0] for ax in axes.ravel()]
+    assert {im.get_clim() for im in images} == {(0.0, 100.0)}  # one scale, in percent
+    assert len(fig.axes) == 3  # two panels and one colour bar
+    im = images[0]
+    a = np.asarray(im.get_array())
+    assert im.origin == "lower" and tuple(im.get_extent()) == (-HALF_ARENA, HALF_ARENA, -HALF_ARENA, HALF_ARENA)
+    row, col = np.unravel_index(np.argmax(a), a.shape)
+    assert (row, col) == (0, 23) and a[row, col] == 100.0 and a.sum() == 100.0  # bottom row, last column
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    bright = (np.asarray(im.cmap(1.0)[:3]) * 255).round()
+
+    def pixel(x, y):
+        px, py = axes[0, 0].transData.transform((x, y))
+        return rgba[int(round(rgba.shape[0] - py)), int(round(px)), :3].astype(float)
+
+    assert np.abs(pixel(11.7, -11.7) - bright).max() <= 2  # the corner cell is drawn at the top of the scale
+    for x, y in [(-11.7, -11.7), (11.7, 11.7), (-11.7, 11.7)]:  # the other three corners are not
+        assert np.abs(pixel(x, y) - bright).max() > 50
+    plt.close(fig)
+
+    np.savez(tmp_path / "heatmaps.npz", maps=maps, agents=np.asarray(["A", "B"]), ranges=np.asarray([5.0]))
+    (tmp_path / "config.json").write_text(json.dumps({"budgets": {"heatmap_games": 7}}))
+    png = b1_report.redraw_heatmaps(tmp_path)
+    with Image.open(png) as im:
+        assert png == tmp_path / "figures" / "heatmaps.png" and im.size[0] > 300 and im.size[1] > 300

@@ -44,7 +44,7 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
               "stages/generate.json", "stages/report.json"]:
         assert (out / f).is_file(), f
     assert json.loads((out / "config.json").read_text())["scale"] == "smoke"
-    for fig in ["tsne", "controllability"]:
+    for fig in ["tsne", "controllability", "error_vs_diversity"]:
         with Image.open(out / "figures" / f"{fig}.png") as im:
             im.load()
             assert im.size[0] > 100 and im.size[1] > 100
@@ -92,6 +92,12 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
                 assert float(r[k]) == pytest.approx(v[k], abs=1e-9)
         assert float(mine["0.1"]["paper_err_mean"]) == pytest.approx(
             {"PCG-HR": 0.044, "PPO": 0.156, "PCG-RD": 0.335}[m])
+
+    # The error-vs-diversity scatter plots the CSVs' numbers: per (method, target) (err_mean, pc1).
+    num = lambda r: {**r, "target": r["target"] if r["target"] == "mean" else float(r["target"]),
+                     **{k: float(r[k]) for k in ("err_mean", "pc1") if k in r}}
+    crow, drow = [num(r) for r in rows], [num(r) for r in _csv(out / "csv" / "diversity.csv")]
+    _check_scatter(crow, drow)
 
     # The finished run resumed: a no-op that says so, fast.
     n_log = len((out / "log.txt").read_text().splitlines())
@@ -144,3 +150,52 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
     weights, _ = checkpoint.load_policy_weights(ckpt)
     for x, y in zip(jax.tree.leaves(again["params"]), jax.tree.leaves(weights), strict=True):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+
+
+def _check_scatter(crow, drow):
+    """``error_vs_diversity_figure(crow, drow)`` holds, per method, exactly the finite (pc1, err_mean)
+    pairs of its per-target rows, and its ``mean`` rows' pair; returns the figure's points."""
+    import matplotlib.pyplot as plt
+
+    from experiments import b2_report
+
+    fig = b2_report.error_vs_diversity_figure(crow, drow)
+    ax = fig.axes[0]
+    drawn = {c.get_label(): np.asarray(c.get_offsets(), float) for c in ax.collections}
+    for m in dict.fromkeys(r["method"] for r in crow):
+        err = {r["target"]: r["err_mean"] for r in crow if r["method"] == m and r["target"] != "mean"}
+        pc1 = {r["target"]: r["pc1"] for r in drow if r["method"] == m and r["target"] != "mean"}
+        want = sorted((pc1[t], err[t]) for t in err if math.isfinite(err[t]) and math.isfinite(pc1.get(t, math.nan)))
+        got = sorted(map(tuple, drawn[f"{m}: per target"].tolist()))
+        np.testing.assert_allclose(np.asarray(got).reshape(-1, 2), np.asarray(want).reshape(-1, 2))
+        mean = (next(r["pc1"] for r in drow if r["method"] == m and r["target"] == "mean"),
+                next(r["err_mean"] for r in crow if r["method"] == m and r["target"] == "mean"))
+        if all(map(math.isfinite, mean)):
+            np.testing.assert_allclose(drawn[f"{m}: mean"], [mean])
+    assert "diversity" in ax.get_xlabel() and "|W_t − W_c|" in ax.get_ylabel()
+    plt.close(fig)
+    return drawn
+
+
+def test_error_vs_diversity_figure_points_legend_and_gaps():
+    """Synthetic rows: one dot per target with both numbers (a NaN PC1 SD is left out and counted
+    in the title), a diamond per method mean, the paper's mean as a hollow square, a legend."""
+    crow = [{"method": m, "target": t, "err_mean": e} for m, es in (("PPO", (0.3, 0.2)), ("PCG-HR", (0.05, 0.1)))
+            for t, e in zip((0.1, 0.2), es, strict=True)]
+    crow += [{"method": "PPO", "target": "mean", "err_mean": 0.25}, {"method": "PCG-HR", "target": "mean",
+                                                                     "err_mean": 0.075}]
+    drow = [{"method": "PPO", "target": 0.1, "pc1": 0.5}, {"method": "PPO", "target": 0.2, "pc1": math.nan},
+            {"method": "PPO", "target": "mean", "pc1": 0.5}, {"method": "PCG-HR", "target": 0.1, "pc1": 0.2},
+            {"method": "PCG-HR", "target": 0.2, "pc1": 0.3}, {"method": "PCG-HR", "target": "mean", "pc1": 0.25}]
+    drawn = _check_scatter(crow, drow)
+    np.testing.assert_allclose(drawn["PPO: per target"], [[0.5, 0.3]])  # target 0.2 (no PC1 SD) left out
+    np.testing.assert_allclose(drawn["PCG-HR: per target"], [[0.2, 0.05], [0.3, 0.1]])
+    np.testing.assert_allclose(drawn["PPO: paper's mean"], [[0.513, 0.248]])
+    import matplotlib.pyplot as plt
+
+    from experiments import b2_report
+
+    fig = b2_report.error_vs_diversity_figure(crow, drow)
+    assert "; 1 (method, target) group lacking a number not shown" in fig.axes[0].get_title()
+    assert len(fig.axes[0].get_legend().get_texts()) == 6  # 2 methods x (per target, mean, paper)
+    plt.close(fig)

@@ -75,7 +75,38 @@ def test_quickstart(monkeypatch):
 def test_balancing_sweep(monkeypatch):
     nb = execute("balancing_sweep.ipynb", monkeypatch)
     assert "4 ranges x 4 cool times = 16 contents" in output_text(nb)
+    assert "saved balance_map.png in a temporary folder" in output_text(nb)  # docs/img/ only at full size
     assert has_image(nb, "image/png")
+
+
+def test_balance_map_figure_orientation_scale_and_contour(tmp_path):
+    """``experiments.balance_map``: win_rate[range, cool] is drawn at (x = cool time, y = range) on a
+    0-1 scale with a labelled colour bar; the 0.5 contour appears when the map crosses 0.5 and
+    separates the cells below it from those above; the PNG is written."""
+    import numpy as np
+    from PIL import Image
+
+    from experiments.balance_map import balance_map_figure, save_png
+
+    ranges, cools = np.linspace(3.0, 18.0, 6), np.linspace(0.25, 4.0, 5)
+    win = np.zeros((6, 5))
+    win[3:, :] = 1.0  # won from the 4th range up, at every cool time
+    win[5, 4] = 0.25  # one marked cell: top range, longest cool time
+    fig, ax = balance_map_figure(win, ranges, cools, 7, reference=(0.5, 5.0))
+    im = ax.images[0]
+    assert im.get_clim() == (0.0, 1.0) and im.origin == "lower"
+    x0, x1, y0, y1 = im.get_extent()
+    assert x0 < cools[0] < cools[-1] < x1 and y0 < ranges[0] < ranges[-1] < y1
+    assert np.asarray(im.get_array())[5, 4] == 0.25  # row = range (up), column = cool time (right)
+    assert len(fig.axes) == 2 and "win rate" in fig.axes[1].get_ylabel()  # the colour bar
+    assert "cool time (s)" in ax.get_xlabel() and "range" in ax.get_ylabel()
+    (line,) = [p for c in ax.collections for p in c.get_paths()]  # the 0.5 contour
+    assert np.all((line.vertices[:, 1] > ranges[1]) & (line.vertices[:, 1] < ranges[4]))
+    png = save_png(fig, tmp_path / "map.png")
+    with Image.open(png) as img:
+        assert img.size[0] > 300
+    flat, _ = balance_map_figure(np.zeros((6, 5)), ranges, cools, 7)
+    assert not flat.axes[0].collections  # nothing crosses 0.5: no contour
 
 
 def test_benchmark_results(monkeypatch, tmp_path):

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import io
 import json
-import sys
 from pathlib import Path
 
 import matplotlib
@@ -237,5 +236,27 @@ def report(rf: RunFolder, cells: list[dict], timing: dict) -> dict:
     return {"win_rate": means, **rob}
 
 
-if __name__ == "__main__":  # python -m experiments.b1_report RUN_DIR: redraw its heatmaps.png from heatmaps.npz
-    print(redraw_heatmaps(sys.argv[1]))
+def cli(argv=None) -> None:
+    """``python -m experiments.b1_report RUN_DIR``: redraw a Benchmark 1 run's ``figures/heatmaps.png``
+    from its ``heatmaps.npz`` and ``config.json`` (no training, no playing)."""
+    import argparse
+
+    from raidjax.utils import HelpFormatter, run_cli
+
+    ap = argparse.ArgumentParser(prog="python -m experiments.b1_report", formatter_class=HelpFormatter,
+                                 description="Redraw a Benchmark 1 run's occupancy heatmaps from its saved maps")
+    ap.add_argument("run_dir", help="a Benchmark 1 run folder (experiments.benchmark1 --out) holding heatmaps.npz")
+    args = ap.parse_args(argv)
+
+    def main():
+        run = Path(args.run_dir)
+        if not (run / "heatmaps.npz").is_file() or not (run / "config.json").is_file():
+            raise ValueError(f"run_dir: value {args.run_dir!r} holds no heatmaps.npz and config.json; allowed: a "
+                             "Benchmark 1 run folder whose heatmaps stage has finished")
+        print(redraw_heatmaps(run))
+
+    run_cli(main)
+
+
+if __name__ == "__main__":
+    cli()

@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
-from raidjax.utils import atomic_write, fmt_seconds, run_cli, whole_number_arg
+from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import PRESETS, Config
 from trainers.mapoca import RANGE_TABLE, make_trainer, range_table
@@ -298,17 +298,18 @@ def heatmaps(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> d
 
 def main(argv=None) -> dict:
     """Run (or resume) Benchmark 1; returns the summary (also the last stdout line)."""
-    ap = argparse.ArgumentParser(prog="python -m experiments.benchmark1", description=__doc__.split("\n")[0])
-    ap.add_argument("--scale", choices=sorted(SCALES), default="smoke")
-    ap.add_argument("--out", required=True, help="run folder (new, or holding this run with --resume)")
+    ap = argparse.ArgumentParser(prog="python -m experiments.benchmark1", description=__doc__.split("\n")[0],
+                                 formatter_class=HelpFormatter)
+    ap.add_argument("--scale", choices=sorted(SCALES), default="smoke", help="budgets: smoke (a test), cpu, paper")
+    ap.add_argument("--out", required=True, help="run folder, new or holding this run with --resume (required)")
     ap.add_argument("--resume", action="store_true", help="continue the run in --out (same settings; a finished run "
                     "is left as it is)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
     ap.add_argument("--protocol", choices=sorted(PROTOCOLS), default="paper",
                     help="paper: train MA-POCA1..4 and populations at cool time 0.5, range redrawn every second "
                     "episode; raidjax: train at the test content (cool time 1.0), range redrawn every episode")
     ap.add_argument("--max-chunks", type=whole_number_arg(1),
-                    help="stop training after this many chunks (tests resuming)")
+                    help="stop training after this many chunks, to resume later (default: no limit)")
     args = ap.parse_args(argv)
     scale = SCALES[args.scale]
     runs = runs_of(scale, args.protocol)

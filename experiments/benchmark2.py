@@ -15,9 +15,10 @@ last finished one, and ``train`` also resumes mid-training from its latest orbax
    band, ``gen_games`` per measurement, sampled PPO, the final skill re-measured with
    ``eval_games`` games. The episodes are generated in ``parts`` (each saved, so an interruption
    loses at most one part); the result is ``generated.npz`` and ``csv/generated.csv``.
-3. ``report``: controllability / diversity / yield tables beside the paper's numbers, the t-SNE
-   and controllability figures (``experiments.b2_report``); under ``paper`` every (method,
-   target) group is cut to 300 (or the smallest group) before the metrics, with a fixed seed.
+3. ``report``: controllability / diversity / yield tables beside the paper's numbers, the t-SNE,
+   controllability and error-vs-diversity figures (``experiments.b2_report``); under ``paper``
+   every (method, target) group is cut to 300 (or the smallest group) before the metrics, with a
+   fixed seed.
 
 Variants beyond the paper's protocol (each recorded in ``config.json``): ``--pool-repeats`` (the
 generation environment pools the games of an unchanged skill, for all three generators),
@@ -41,7 +42,7 @@ import numpy as np
 
 from raidjax import pcg
 from raidjax.pcg import metrics as pm
-from raidjax.utils import atomic_write, fmt_seconds, run_cli, whole_number_arg
+from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.generate import evaluate, target_groups
 from trainers.metrics import update_rows
@@ -117,12 +118,14 @@ def ppo_config(scale: Scale) -> PPOConfig:
 
 
 def _parse(argv=None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(description="Benchmark 2 (content generation) of the RaidEnv paper")
-    ap.add_argument("--scale", choices=sorted(SCALES), default="cpu")
-    ap.add_argument("--out", required=True, help="run folder (new, or holding this run with --resume)")
+    ap = argparse.ArgumentParser(prog="python -m experiments.benchmark2",
+                                 description="Benchmark 2 (content generation) of the RaidEnv paper",
+                                 formatter_class=HelpFormatter)
+    ap.add_argument("--scale", choices=sorted(SCALES), default="cpu", help="budgets: smoke (a test), cpu, paper")
+    ap.add_argument("--out", required=True, help="run folder, new or holding this run with --resume (required)")
     ap.add_argument("--resume", action="store_true", help="continue the run in --out (same settings; a finished run "
                     "is left as it is)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
     ap.add_argument("--protocol", choices=sorted(pm.PROTOCOLS), default="paper",
                     help="paper: strict 40-decision episodes measured with eval_games games at every edit, greedy "
                     "PPO, last measured skill, groups cut to 300; raidjax: early stop at the band, sampled PPO, "
@@ -133,7 +136,7 @@ def _parse(argv=None) -> argparse.Namespace:
                     "distance to the episode's style goal (default 0 = off)")
     ap.add_argument("--goal-axis", type=pcg.axis_arg, help="a style goal per episode at one end of this axis, 4 "
                     "comma-separated signs in {-1,0,1} for range,cool_time,cast_time,coefficient (1,1,1,1 = heavy "
-                    "vs light skills)")
+                    "vs light skills) (default: none)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
     ap.add_argument("--total-steps", type=whole_number_arg(1),
                     help="PPO generator steps per group (default: the scale's)")

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
-from raidjax.utils import atomic_write
+from raidjax.utils import HelpFormatter, atomic_write, check_output_file, run_cli, whole_number_arg
 
 RANGES = (5.0, 9.0, 13.0, 17.0)
 PAPER = {"heuristic": (0.089, 0.371, 0.698, 0.830), "random": (0.000, 0.002, 0.029, 0.058)}
@@ -72,18 +72,26 @@ def markdown(table: dict, n_games: int, ranges=RANGES) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description="PT-HR / PT-RD win rates vs the RaidEnv paper")
-    ap.add_argument("--games", type=int, default=2000, help="games per cell (default 2000)")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--rules", default="reference", choices=sorted(raidjax.RULE_SETS), help="default: reference")
+def _parse(argv=None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(prog="python -m raidjax.calibrate", description="PT-HR / PT-RD win rates beside "
+                                 "the RaidEnv paper's table.", formatter_class=HelpFormatter)
+    ap.add_argument("--games", type=whole_number_arg(1), default=2000, help="games per cell")
+    ap.add_argument("--seed", type=whole_number_arg(0, 2**31 - 1), default=0, help="PRNG seed")
+    ap.add_argument("--rules", default="reference", choices=sorted(raidjax.RULE_SETS),
+                    help="reference: the game the paper measured; clean: the intended game")
     ap.add_argument("--substeps", type=int, default=5, choices=(1, 5),
-                    help="sub-steps per decision: 5 (default, the 0.02 s tick) or 1")
-    ap.add_argument("--json", help="also write the results to this JSON file")
+                    help="sub-steps per decision: 5 (the 0.02 s tick) or 1")
+    ap.add_argument("--json", help="also write the results to this JSON file, in an existing folder (default: none)")
     ap.add_argument("--check", action="store_true", help="exit 1 if a cell is outside the tolerance")
     args = ap.parse_args(argv)
-    if args.games < 1:
-        ap.error(f"--games: value {args.games} must be >= 1")
+    if args.json is not None:  # checked now: the games take minutes
+        check_output_file("--json", args.json, (".json",))
+    return args
+
+
+def main(argv=None) -> int:
+    """Play, print the table (and write ``--json``); returns the exit status (1: ``--check`` failed)."""
+    args = _parse(argv)
     config = raidjax.EnvConfig.from_rules(args.rules, n_substeps=args.substeps)
     t0 = time.perf_counter()
     print(f"Playing {args.games} games per cell, {len(RANGES) * 2} cells, rules {args.rules!r}, "
@@ -97,7 +105,7 @@ def main(argv=None) -> int:
     print(f"{games} games in {seconds:.1f} s (compile included).")
     if args.json:
         payload = {"games_per_cell": args.games, "seed": args.seed, "rules": args.rules,
-                   "n_substeps": args.substeps, "seconds": seconds, "table": table, "paper": PAPER}
+                   "n_substeps": args.substeps, "seconds": round(seconds, 2), "table": table, "paper": PAPER}
         atomic_write(args.json, json.dumps(payload, indent=2))
     ok = all(
         abs(w - p) <= TOLERANCE[n]
@@ -107,5 +115,11 @@ def main(argv=None) -> int:
     return 0 if ok or not args.check else 1
 
 
+def cli(argv=None) -> None:
+    """``main`` as a command line: one-line errors (exit 2), one line on Ctrl-C (exit 130), exit 1
+    when ``--check`` fails."""
+    run_cli(lambda: sys.exit(main(argv)))
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    cli()

@@ -6,6 +6,8 @@ attacks.
 
     python -m raidjax.render --policy heuristic --skill-range 9 --out replay.gif
     python -m trainers.render --policy runs/mapoca_cpu_r9 --skill-range 9 --out team.gif   # a trained team
+
+(``raidjax render ...`` is the second: ``experiments.cli``.)
 """
 
 from __future__ import annotations
@@ -18,8 +20,11 @@ import jax
 import numpy as np
 from PIL import Image, ImageDraw
 
-from raidjax.types import HALF_ARENA, PROJ_AREA, Params
-from raidjax.utils import atomic_write
+from raidjax.catalogue import CLASSES
+from raidjax.content import SKILL_SPECS
+from raidjax.policies import BY_NAME
+from raidjax.types import HALF_ARENA, PROJ_AREA, EnvConfig, Params
+from raidjax.utils import HelpFormatter, atomic_write, check_output_file, number_arg, run_cli, whole_number_arg
 
 PLAYER_COLOURS = [(66, 135, 245), (46, 204, 113), (241, 196, 15), (155, 89, 182), (230, 126, 34)]
 BOSS_COLOUR = (200, 40, 40)
@@ -103,35 +108,86 @@ def render_gif(trace, params: Params, path: str, size: int = 360, every: int = 2
     return len(frames)
 
 
-def main(argv=None, load_policy: Callable | None = None) -> None:
-    """The replay command. ``load_policy(path) -> policy`` turns a ``--policy`` that is not a
-    built-in name into a policy (``trainers.render`` passes the MA-POCA loader); without it only
-    the built-in policies are accepted."""
+def _parser(prog: str, trained: bool) -> argparse.ArgumentParser:
+    low, high = SKILL_SPECS["range"][1]
+    limit = EnvConfig().max_decisions
+    ap = argparse.ArgumentParser(prog=prog, description="Render a replay GIF of one episode.",
+                                 formatter_class=HelpFormatter)
+    ap.add_argument("--policy", default="heuristic", help=" | ".join(sorted(BY_NAME))
+                    + (" | a trained MA-POCA run folder (trainers.mapoca_cli --out)" if trained else ""))
+    ap.add_argument("--skill-range", type=number_arg(low, high), default=9.0, metavar="RANGE",
+                    help="range of every player's skill slot 1")
+    ap.add_argument("--players", default="mage,mage,mage",
+                    help=f"1 to 8 comma-separated class presets from {', '.join(sorted(CLASSES))}")
+    ap.add_argument("--seed", type=whole_number_arg(0, 2**31 - 1), default=0, help="PRNG seed of the episode")
+    ap.add_argument("--decisions", type=whole_number_arg(1, limit), default=600,
+                    help=f"decisions recorded (0.1 s each; the episode limit is {limit})")
+    ap.add_argument("--out", default="replay.gif", help="the GIF to write, in an existing folder")
+    return ap
+
+
+def _players(text: str) -> list[str]:
+    """``--players`` as a list of class preset names, checked (``ValueError`` naming the flag)."""
+    names = [n.strip() for n in text.split(",")]
+    allowed = f"1 to 8 comma-separated class presets from {sorted(CLASSES)}"
+    unknown = [n for n in names if n not in CLASSES]
+    if unknown:
+        raise ValueError(f"--players: value {text!r} names an unknown class {unknown[0]!r}; allowed: {allowed}")
+    if len(names) > 8:
+        raise ValueError(f"--players: value {text!r} names {len(names)} players; allowed: {allowed}")
+    return names
+
+
+def _check_policy(name: str, load_policy: Callable | None, find_run: Callable[[str], str | None] | None) -> None:
+    """A ``--policy`` that is not a built-in name needs a ``load_policy``, and ``find_run`` (when
+    given) must accept it: else ``ValueError``, listing the built-in names."""
+    import difflib
+
+    if name in BY_NAME:
+        return
+    names = sorted(BY_NAME)
+    close = difflib.get_close_matches(name, names, n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    if load_policy is None:
+        raise ValueError(f"--policy: value {name!r} is not a built-in policy; allowed: one of {names} (a trained "
+                         "MA-POCA run folder renders with python -m trainers.render, which needs pip install -e "
+                         f"'.[train]'){hint}")
+    why = find_run(name) if find_run is not None else None
+    if why:
+        raise ValueError(f"--policy: value {name!r} is neither a built-in policy nor a run folder holding a "
+                         f"checkpoint ({why}); allowed: one of {names}, or a trained MA-POCA run folder "
+                         f"(trainers.mapoca_cli --out){hint}")
+
+
+def main(argv=None, load_policy: Callable | None = None, find_run: Callable[[str], str | None] | None = None,
+         prog: str = "python -m raidjax.render") -> None:
+    """The replay command. ``load_policy(path) -> (policy, weights)`` turns a ``--policy`` that is not a
+    built-in name into a policy (``trainers.render`` passes the MA-POCA loader) once
+    ``find_run(path)`` accepted it (``None``; otherwise it returns why not); without them only the
+    built-in policies are accepted. Every flag is checked before anything compiles (``ValueError``,
+    one line naming the flag, the value and what is allowed)."""
     import raidjax
 
-    ap = argparse.ArgumentParser(description="Render a replay GIF of one episode")
-    ap.add_argument("--policy", default="heuristic",
-                    help="random | heuristic | noop" + (" | a trained run's folder" if load_policy else ""))
-    ap.add_argument("--skill-range", type=float, default=9.0)
-    ap.add_argument("--players", default="mage,mage,mage", help="comma-separated class presets")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--decisions", type=int, default=600)
-    ap.add_argument("--out", default="replay.gif")
-    args = ap.parse_args(argv)
-    params = raidjax.make_params(players=args.players.split(","), skill_range=args.skill_range)
+    args = _parser(prog, load_policy is not None).parse_args(argv)
+    players = _players(args.players)
+    check_output_file("--out", args.out, (".gif",))
+    _check_policy(args.policy, load_policy, find_run)
+    params = raidjax.make_params(players=players, skill_range=args.skill_range)
     if args.policy in raidjax.policies.BY_NAME:
-        policy = raidjax.policies.BY_NAME[args.policy]
-    elif load_policy is not None:
-        policy = load_policy(args.policy)
+        policy, weights = raidjax.policies.BY_NAME[args.policy], None
     else:
-        ap.error(f"--policy: {args.policy!r} is not one of {sorted(raidjax.policies.BY_NAME)}; "
-                 "a trained MA-POCA team renders with python -m trainers.render --policy RUN_FOLDER")
+        policy, weights = load_policy(args.policy)  # (policy(weights, key, obs, state, params), weights)
     record = jax.jit(raidjax.logs.record_episode, static_argnames=("policy", "n_decisions"))
-    trace, summary = record(jax.random.key(args.seed), params, policy, args.decisions)
+    trace, summary = record(jax.random.key(args.seed), params, policy, args.decisions, weights)
     n = render_gif(trace, params, args.out)
     outcome = {0: "running", 1: "win", 2: "loss", 3: "draw"}[int(summary["outcome"])]
     print(f"{args.out}: {n} frames, {outcome} after {int(summary['length']) / 10:.1f} s")
 
 
+def cli(argv=None) -> None:
+    """``main`` as a command line: one-line errors (exit 2), one line on Ctrl-C (exit 130)."""
+    run_cli(lambda: main(argv))
+
+
 if __name__ == "__main__":
-    main()
+    cli()

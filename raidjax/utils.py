@@ -1,9 +1,11 @@
 """Small array helpers that stay fast under ``vmap`` on CPU, and host-side helpers shared by the
 simulator, trainers and experiments: ``atomic_write`` (every file a user keeps), ``machine`` and
-``fmt_seconds`` (reports and progress lines), ``whole_number_arg``, ``run_cli`` and ``finite_json`` (command lines)."""
+``fmt_seconds`` (reports and progress lines), ``HelpFormatter``, ``whole_number_arg``, ``number_arg``,
+``check_output_file``, ``run_cli`` and ``finite_json`` (command lines)."""
 
 from __future__ import annotations
 
+import argparse
 import os
 import platform
 import tempfile
@@ -102,22 +104,88 @@ def atomic_write(path: str | Path, data: str | bytes) -> Path:
     return path
 
 
-def whole_number_arg(low: int = 1):
-    """An ``argparse`` type: a whole number ``>= low``, else a one-line usage error naming the value
-    (checked before anything compiles; ``raidjax.validate.whole_number`` checks Python values)."""
-    import argparse
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """``--help`` of every raidjax command line: each option's default as ``(default: X)``, unless its
+    help already says it (an option defaulting to ``None`` says in words what happens without it,
+    e.g. ``(default: the preset's)``); flags (``False``) and required options show none."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if ("default" in text or action.required or not action.option_strings
+                or action.default is None or action.default is False or action.default is argparse.SUPPRESS):
+            return text
+        return text + " (default: %(default)s)"
+
+
+def whole_number_arg(low: int = 1, high: int | None = None):
+    """An ``argparse`` type: a whole number ``>= low`` (and ``<= high`` when given), else a one-line
+    usage error naming the value (checked before anything compiles; ``raidjax.validate.whole_number``
+    checks Python values)."""
+    allowed = f"a whole number >= {low}" if high is None else f"a whole number in [{low}, {high}]"
 
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             value = None
-        if value is None or value < low:
-            raise argparse.ArgumentTypeError(f"value {text!r}; allowed: a whole number >= {low}")
+        if value is None or value < low or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"value {text!r}; allowed: {allowed}")
         return value
 
-    parse.__name__ = f"whole number >= {low}"
+    parse.__name__ = allowed.removeprefix("a ")
     return parse
+
+
+def number_arg(low: float, high: float):
+    """An ``argparse`` type: a finite number in ``[low, high]``, else a one-line usage error naming
+    the value (no clipping)."""
+    import math
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not low <= value <= high:  # NaN fails too
+            raise argparse.ArgumentTypeError(f"value {text!r}; allowed: a number in [{low:g}, {high:g}]")
+        return value
+
+    parse.__name__ = f"number in [{low:g}, {high:g}]"
+    return parse
+
+
+def check_output_file(flag: str, path: str | Path, suffixes: tuple[str, ...] = (), what: str = "a file") -> Path:
+    """Check a command line's output file before anything runs (a long run must not fail at its
+    last write): not a folder, inside an existing folder this process may write to, and ending
+    in one of ``suffixes`` (any case) when given. An existing file is allowed (replaced
+    atomically by ``atomic_write``).
+
+    Returns:
+        ``path`` as a ``Path``.
+
+    Raises:
+        ValueError: one line, ``"<flag>: value '<path>' <what is wrong>; allowed: <what is allowed>"``.
+    """
+    text = str(path)
+    ends = " or ".join(suffixes)
+    allowed = f"{what} path{' ending in ' + ends if suffixes else ''}, in an existing folder"
+    path = Path(path)
+    folder = path.parent
+    if not text.strip():
+        wrong = "is empty"
+    elif path.is_dir() or text.endswith(("/", os.sep)):
+        wrong = "is a folder"
+    elif suffixes and not path.name.lower().endswith(tuple(s.lower() for s in suffixes)):
+        wrong = f"does not end in {ends}"
+    elif not folder.is_dir():
+        wrong = f"is in a folder that does not exist ({folder})"
+        if folder.exists():
+            wrong = f"is under a file ({folder})"
+    elif not os.access(folder, os.W_OK | os.X_OK):
+        wrong = f"is in a folder this process cannot write to ({folder})"
+    else:
+        return path
+    raise ValueError(f"{flag}: value {text!r} {wrong}; allowed: {allowed}")
 
 
 def run_cli(main, errors: tuple[type[BaseException], ...] = (ValueError,), interrupted: str = "") -> None:

@@ -313,6 +313,13 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
         raidjax.playtest(jax.random.key(0), content, policy, 4, weights=w)
     assert _playtest._cache_size() == before + 1
 
+    # The replay command renders the trained team (its weights go to record_episode as an argument).
+    from trainers import render
+
+    gif = tmp_path / "team.gif"
+    render.main(["--policy", str(tmp_path), "--skill-range", "9", "--decisions", "3", "--out", str(gif)])
+    assert gif.read_bytes()[:6] == b"GIF89a" and "frames" in capsys.readouterr().out
+
     with pytest.raises(checkpoint.CheckpointError, match="does not exist"):
         load_policy(tmp_path / "nope")
     (tmp_path / "empty").mkdir()

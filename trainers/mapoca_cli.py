@@ -23,7 +23,7 @@ import jax
 import numpy as np
 
 import raidjax
-from raidjax.utils import atomic_write, fmt_seconds, machine, run_cli, whole_number_arg
+from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, machine, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import Config, load_config
 from trainers.mapoca import load_policy, make_trainer, summarize
@@ -34,24 +34,27 @@ from trainers.runfolder import RunFolder
 def parse_args(argv=None) -> argparse.Namespace:
     """CLI arguments (see the module docstring); numbers are checked here, before compiling."""
     ap = argparse.ArgumentParser(prog="python -m trainers.mapoca_cli", description="Train MA-POCA on raidjax.",
-                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    ap.add_argument("--preset", default="cpu", choices=["paper", "cpu"])
-    ap.add_argument("--config", help="JSON file of Config fields (applied after the preset)")
+                                 formatter_class=HelpFormatter)
+    ap.add_argument("--preset", default="cpu", choices=["paper", "cpu"],
+                    help="paper: the paper's budget and network; cpu: a smaller one that trains on a CPU")
+    ap.add_argument("--config", help="JSON file of Config fields, applied after the preset (default: none)")
     ap.add_argument("--skill-range", type=float, nargs="+", help="range(s) of the players' skill; "
                     "several values = drawn per episode (default: the preset's)")
     ap.add_argument("--total-steps", type=whole_number_arg(1),
                     help="environment decisions per seed (default: the preset's)")
     ap.add_argument("--seeds", type=whole_number_arg(1), default=1, help="seeds trained together (vmapped)")
     ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
-    ap.add_argument("--out", required=True, help="run folder (new, or holding this run with --resume)")
+    ap.add_argument("--out", required=True, help="run folder, new or holding this run with --resume (required)")
     ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
                     "checkpoint (same settings; a finished run is left as it is)")
-    ap.add_argument("--checkpoint-every", type=whole_number_arg(1), help="updates between checkpoints")
-    ap.add_argument("--updates-per-chunk", type=whole_number_arg(1), help="updates per jitted chunk (log row)")
-    ap.add_argument("--eval-games", type=whole_number_arg(0), help="games of the final evaluation (0 skips it; "
-                    "may change on --resume)")
+    ap.add_argument("--checkpoint-every", type=whole_number_arg(1),
+                    help="updates between checkpoints (default: the preset's)")
+    ap.add_argument("--updates-per-chunk", type=whole_number_arg(1),
+                    help="updates per jitted chunk, one log row each (default: the preset's)")
+    ap.add_argument("--eval-games", type=whole_number_arg(0), help="games of the final evaluation, 0 skips it; "
+                    "may change on --resume (default: the preset's)")
     ap.add_argument("--max-chunks", type=whole_number_arg(1), help="stop (after a checkpoint) once this many chunks "
-                    "ran in this invocation")
+                    "ran in this invocation (default: no limit)")
     return ap.parse_args(argv)
 
 

@@ -10,7 +10,9 @@ import csv
 import io
 from pathlib import Path
 
-from raidjax.utils import atomic_write
+from raidjax.utils import HelpFormatter, atomic_write, check_output_file, run_cli
+
+FORMATS = ("png", "pdf", "svg")  # of --out, by its suffix
 
 
 def read_metrics(run: str | Path) -> dict[str, list[float]]:
@@ -20,17 +22,49 @@ def read_metrics(run: str | Path) -> dict[str, list[float]]:
     return {k: [float(r[k]) for r in rows] for k in rows[0]}
 
 
+COLUMNS = ("env_steps", "win_rate", "return")  # of a MA-POCA run's metrics.csv (trainers.mapoca_cli)
+
+
+def _check_run(run: str) -> None:
+    """``run`` must be a MA-POCA run folder whose ``metrics.csv`` has rows with ``COLUMNS`` (``ValueError``)."""
+    allowed = "a MA-POCA run folder (trainers.mapoca_cli --out) with at least one row in its metrics.csv"
+    path = Path(run) / "metrics.csv"
+    if not Path(run).is_dir():
+        wrong = "does not exist" if not Path(run).exists() else "is a file, not a folder"
+    elif not path.is_file():
+        wrong = "holds no metrics.csv"
+    else:
+        try:
+            m = read_metrics(run)
+        except (IndexError, ValueError, KeyError, csv.Error):  # empty, torn, or not numbers
+            m = None
+        missing = [c for c in COLUMNS if c not in (m or {})]
+        if m is None:
+            wrong = "has a metrics.csv without rows, or not a table of numbers"
+        elif missing:
+            wrong = f"has a metrics.csv without the column {missing[0]!r} (not a MA-POCA run?)"
+        else:
+            return
+    raise ValueError(f"runs: value {run!r} {wrong}; allowed: {allowed}")
+
+
 def main(argv=None) -> None:
-    """Plot win rate and return per episode against decisions (and wall-clock) for each run."""
+    """Plot win rate and return per episode against decisions for each run; every argument is
+    checked before matplotlib is imported (``ValueError``, one line)."""
+    ap = argparse.ArgumentParser(prog="python -m trainers.plot", formatter_class=HelpFormatter,
+                                 description="Learning curves of MA-POCA runs from their metrics.csv.")
+    ap.add_argument("runs", nargs="+", help="MA-POCA run folders (trainers.mapoca_cli --out)")
+    ap.add_argument("--out", required=True, help="the figure to write, in an existing folder; its suffix picks the "
+                    f"format: {', '.join(FORMATS)} (required)")
+    args = ap.parse_args(argv)
+    check_output_file("--out", args.out, tuple(f".{f}" for f in FORMATS))
+    for run in args.runs:
+        _check_run(run)
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("runs", nargs="+")
-    ap.add_argument("--out", required=True)
-    args = ap.parse_args(argv)
     fig, (ax_w, ax_r) = plt.subplots(1, 2, figsize=(10, 3.6))
     for run in args.runs:
         m = read_metrics(run)
@@ -45,10 +79,15 @@ def main(argv=None) -> None:
         ax.legend(fontsize=8)
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format=Path(args.out).suffix.lstrip(".") or "png", dpi=110)
+    fig.savefig(buf, format=Path(args.out).suffix.lstrip(".").lower(), dpi=110)
     plt.close(fig)
     atomic_write(args.out, buf.getvalue())  # a reader never sees half a figure
 
 
+def cli(argv=None) -> None:
+    """``main`` as a command line: one-line errors (exit 2), one line on Ctrl-C (exit 130)."""
+    run_cli(lambda: main(argv))
+
+
 if __name__ == "__main__":
-    main()
+    cli()

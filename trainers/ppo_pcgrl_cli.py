@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import time
 
@@ -23,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg
-from raidjax.utils import atomic_write, finite_json, fmt_seconds, run_cli, whole_number_arg
+from raidjax.utils import HelpFormatter, atomic_write, finite_json, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.generate import evaluate, target_groups
 from trainers.metrics import MetricsLog, update_rows
@@ -33,38 +34,54 @@ from trainers.runfolder import RunFolder
 
 def _args(argv=None):
     ap = argparse.ArgumentParser(prog="python -m trainers.ppo_pcgrl_cli", description="PPO-PCGRL on raidjax.pcg",
-                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    ap.add_argument("--preset", choices=sorted(PRESETS), default="cpu")
+                                 formatter_class=HelpFormatter)
+    ap.add_argument("--preset", choices=sorted(PRESETS), default="cpu", help="budget and network preset")
     ap.add_argument("--total-steps", type=whole_number_arg(1), help="generator steps per group (default: the preset's)")
-    ap.add_argument("--seeds", type=whole_number_arg(1), default=1)
+    ap.add_argument("--seeds", type=whole_number_arg(1), default=1, help="seeds per target group (vmapped)")
     ap.add_argument("--out", default="runs/ppo_pcgrl", help="run folder (new, or holding this run with --resume)")
     ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
                     "checkpoint (same settings; a finished run is left as it is)")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--n-games", type=whole_number_arg(1), help="playtest games per training measurement")
-    ap.add_argument("--n-arenas", type=whole_number_arg(1), help="generator episodes stepped in parallel")
-    ap.add_argument("--lr", type=float)
-    ap.add_argument("--edit-cost", type=float, help="learner penalty per tick moved")
+    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
+    ap.add_argument("--n-games", type=whole_number_arg(1),
+                    help="playtest games per training measurement (default: the preset's)")
+    ap.add_argument("--n-arenas", type=whole_number_arg(1),
+                    help="generator episodes stepped in parallel (default: the preset's)")
+    ap.add_argument("--lr", type=float, help="learning rate (default: the preset's)")
+    ap.add_argument("--edit-cost", type=float, help="learner penalty per tick moved (default: the preset's)")
     ap.add_argument("--goal-cost", type=float,
-                    help="with --goal-axis: learner penalty per squared tick of distance to the episode's style goal")
+                    help="with --goal-axis: learner penalty per squared tick of distance to the episode's style goal "
+                         "(default: the preset's)")
     ap.add_argument("--goal-axis", type=pcg.axis_arg,
                     help="style goals at the two ends of this axis, 4 comma-separated signs in {-1,0,1} for "
-                         "range,cool_time,cast_time,coefficient (1,1,1,1 = heavy vs light)")
-    ap.add_argument("--ent-coef", type=float, help="entropy bonus coefficient")
+                         "range,cool_time,cast_time,coefficient (1,1,1,1 = heavy vs light) (default: none)")
+    ap.add_argument("--ent-coef", type=float, help="entropy bonus coefficient (default: the preset's)")
     ap.add_argument("--pool-repeats", action="store_true", default=None,
-                    help="re-measuring an unchanged skill pools its games (sharper win rate when holding)")
+                    help="re-measuring an unchanged skill pools its games (sharper win rate when holding; "
+                         "default: the preset's)")
     ap.add_argument("--chunk", type=whole_number_arg(1), default=4,
                     help="updates per jitted chunk (progress/checkpoint period)")
     ap.add_argument("--max-chunks", type=whole_number_arg(1), help="stop (after a checkpoint) once this many chunks "
-                    "ran in this invocation")
+                    "ran in this invocation (default: no limit)")
     ap.add_argument("--eval-episodes", type=whole_number_arg(0), default=8,
                     help="episodes per target and method (0 skips the evaluation)")
     ap.add_argument("--eval-gen-games", type=whole_number_arg(1), default=100,
                     help="games per generator measurement in eval")
     ap.add_argument("--eval-games", type=whole_number_arg(1), default=300, help="games measuring each final skill")
     ap.add_argument("--greedy", action="store_true", help="argmax actions in evaluation")
-    ap.add_argument("--no-baselines", action="store_true")
+    ap.add_argument("--no-baselines", action="store_true", help="evaluate PPO alone, without PCG-HR and PCG-RD")
     return ap.parse_args(argv)
+
+
+def _rounded(x, key: str = ""):
+    """The result's floats for its printed line: seconds to 0.01 s, the rest to 6 decimals (0.132, not
+    0.13200000524520874)."""
+    if isinstance(x, dict):
+        return {k: _rounded(v, k) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_rounded(v, key) for v in x]
+    if isinstance(x, float) and math.isfinite(x):
+        return round(x, 2 if key.endswith("seconds") else 6)
+    return x
 
 
 def main(argv=None) -> dict | None:
@@ -154,7 +171,7 @@ def main(argv=None) -> dict | None:
                     "yield": {n: s["yield"] for n, s in summ.items()},
                     "eval_seconds": time.perf_counter() - t_eval})
     res["seconds"] = time.perf_counter() - t_start
-    res = json.loads(finite_json(res))  # NaN as null: valid JSON
+    res = json.loads(finite_json(_rounded(res)))  # NaN as null: valid JSON
     atomic_write(out / "result.json", json.dumps(res, indent=1))
     print(json.dumps(res), flush=True)
     return res

@@ -5,14 +5,37 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from raidjax import render
+from raidjax.utils import run_cli
+from trainers import checkpoint
 from trainers.mapoca import load_policy
+
+
+def find_run(path: str) -> str | None:
+    """``None`` if ``path`` (a run folder, its ``checkpoints`` folder or one checkpoint) holds a
+    finished checkpoint, else why not, in a few words (checked before anything loads or compiles)."""
+    p = Path(path)
+    if not p.exists():
+        return "no such folder"
+    if not p.is_dir():
+        return "a file, not a folder"
+    if checkpoint.latest_step(p) is None:
+        return "no finished checkpoint in it"
+    return None
 
 
 def main(argv=None) -> None:
     """``python -m raidjax.render``'s flags; ``--policy`` may also name a MA-POCA run folder."""
-    render.main(argv, load_policy=load_policy)
+    render.main(argv, load_policy=load_policy, find_run=find_run, prog="python -m trainers.render")
+
+
+def cli(argv=None) -> None:
+    """``main`` as a command line: one-line errors (exit 2, a damaged checkpoint included), one line
+    on Ctrl-C (exit 130)."""
+    run_cli(lambda: main(argv), (ValueError, checkpoint.CheckpointError))
 
 
 if __name__ == "__main__":
-    main()
+    cli()

@@ -1,0 +1,176 @@
+"""Command lines that fail politely: every mistake in a flag is refused before anything compiles,
+in one line naming the flag, the value and what is allowed (exit 2, no traceback), and leaves no
+file behind; the ``raidjax`` console command (``experiments.cli``) dispatches to each of them;
+every ``--help`` shows the defaults. The trainers' run-folder refusals (``--resume``, a finished
+run, ``--total-steps 0``) are tested in ``test_faults_mapoca.py`` / ``test_faults_ppo.py``.
+
+Each case runs ``python -m MODULE`` in a fresh process (about 2 s: importing JAX, nothing compiled)."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+KNOWN_CLASSES = "['battle_mage', 'druid', 'mage', 'priest', 'ranger', 'warrior']"
+POLICIES = "['heuristic', 'noop', 'random']"
+OUT_GIF = "allowed: a file path ending in .gif, in an existing folder"
+
+# (id, module, argv, the message's text): "{tmp}" is the test's folder, which holds "run_without_checkpoint/"
+# (a folder with no checkpoint) and "ppo_run/metrics.csv" (a run of the other trainer); the command runs in
+# "{tmp}/cwd". A message starting with "argument" is argparse's (usage, then "PROG: error: argument ...").
+MISTAKES = [
+    ("render-out-folder", "raidjax.render", ["--out", "{tmp}"],
+     f"error: --out: value '{{tmp}}' is a folder; {OUT_GIF}"),
+    ("render-out-missing-folder", "raidjax.render", ["--out", "{tmp}/nowhere/replay.gif"],
+     f"error: --out: value '{{tmp}}/nowhere/replay.gif' is in a folder that does not exist ({{tmp}}/nowhere); "
+     f"{OUT_GIF}"),
+    ("render-out-not-gif", "raidjax.render", ["--out", "{tmp}/replay.png"],
+     f"error: --out: value '{{tmp}}/replay.png' does not end in .gif; {OUT_GIF}"),
+    ("render-policy-mistyped", "raidjax.render", ["--policy", "heurstic"],
+     f"error: --policy: value 'heurstic' is not a built-in policy; allowed: one of {POLICIES}"),
+    ("trainers-render-policy-mistyped", "trainers.render", ["--policy", "heurstic"],
+     "error: --policy: value 'heurstic' is neither a built-in policy nor a run folder holding a checkpoint "
+     f"(no such folder); allowed: one of {POLICIES}, or a trained MA-POCA run folder"),
+    ("trainers-render-policy-no-checkpoint", "trainers.render", ["--policy", "{tmp}/run_without_checkpoint"],
+     "error: --policy: value '{tmp}/run_without_checkpoint' is neither a built-in policy nor a run folder "
+     "holding a checkpoint (no finished checkpoint in it)"),
+    ("render-decisions-0", "raidjax.render", ["--decisions", "0"],
+     "argument --decisions: value '0'; allowed: a whole number in [1, 2000]"),
+    ("render-skill-range-out-of-range", "raidjax.render", ["--skill-range", "50"],
+     "argument --skill-range: value '50'; allowed: a number in [1, 20]"),
+    ("render-unknown-class", "trainers.render", ["--players", "mage,wizard"],
+     f"error: --players: value 'mage,wizard' names an unknown class 'wizard'; allowed: 1 to 8 comma-separated "
+     f"class presets from {KNOWN_CLASSES}"),
+    ("calibrate-games-0", "raidjax.calibrate", ["--games", "0"],
+     "argument --games: value '0'; allowed: a whole number >= 1"),
+    ("calibrate-games-negative", "raidjax.calibrate", ["--games", "-5"],
+     "argument --games: value '-5'; allowed: a whole number >= 1"),
+    ("calibrate-json-folder", "raidjax.calibrate", ["--games", "1", "--json", "{tmp}"],
+     "error: --json: value '{tmp}' is a folder; allowed: a file path ending in .json, in an existing folder"),
+    ("plot-not-a-mapoca-run", "trainers.plot", ["{tmp}/ppo_run", "--out", "{tmp}/curves.png"],
+     "error: runs: value '{tmp}/ppo_run' has a metrics.csv without the column 'env_steps' (not a MA-POCA run?)"),
+    ("raidjax-unknown-command", "experiments.cli", ["trian", "mapoca"],
+     "error: raidjax: value 'trian' is not a command; allowed: a command (calibrate, render, train mapoca, "
+     "train ppo-pcgrl, benchmark 1, benchmark 2, plot), --help or --version"),
+    ("raidjax-unknown-trainer", "experiments.cli", ["train", "ppo"],
+     "error: raidjax train: value 'ppo' is not a trainer; allowed: mapoca, ppo-pcgrl"),
+    ("raidjax-forwards-mistakes", "experiments.cli", ["render", "--out", "{tmp}"],
+     f"error: --out: value '{{tmp}}' is a folder; {OUT_GIF}"),
+]
+
+
+def _files(folder: Path) -> set[str]:
+    """Every file and folder under ``folder``, hidden ones (``.replay.gif.XXXX.tmp``) included."""
+    return {str(p.relative_to(folder)) for p in folder.rglob("*")}
+
+
+def _run(argv: list[str], cwd: Path, code: str | None = None) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    env.pop("RAIDJAX_DEBUG", None)
+    cmd = [sys.executable, "-c", code] if code else [sys.executable, "-m", *argv]
+    return subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize("module, argv, message", [m[1:] for m in MISTAKES], ids=[m[0] for m in MISTAKES])
+def test_a_mistake_is_one_line_before_anything_compiles_and_leaves_no_file(tmp_path, module, argv, message):
+    (tmp_path / "run_without_checkpoint").mkdir()
+    (tmp_path / "ppo_run").mkdir()
+    (tmp_path / "ppo_run" / "metrics.csv").write_text("update,env_steps_x,reward\n1,10,0.5\n")
+    (tmp_path / "cwd").mkdir()
+    before = _files(tmp_path)
+    fill = lambda s: s.replace("{tmp}", str(tmp_path))
+    p = _run([module, *map(fill, argv)], tmp_path / "cwd")
+    err = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and "Traceback" not in p.stderr and p.stdout == "", p.stderr[-3000:]
+    if message.startswith("argument"):  # argparse: its usage, then "PROG: error: argument FLAG: ..."
+        assert err[0].startswith("usage: ") and err[-1].startswith(f"python -m {module}: error: "), p.stderr
+        assert fill(message) in err[-1], p.stderr
+    else:  # run_cli: exactly one line
+        assert len(err) == 1 and err[0].startswith(fill(message)), p.stderr
+    assert _files(tmp_path) == before  # no output, no hidden temporary file, no replay.gif in the cwd
+
+
+def test_raidjax_console_command_lists_and_dispatches(tmp_path):
+    p = _run(["experiments.cli", "--help"], tmp_path)
+    assert p.returncode == 0 and p.stderr == ""
+    listed = re.findall(r"^  (\S+(?: [\w-]+)?)  +\S", p.stdout, re.M)
+    assert listed == ["calibrate", "render", "train mapoca", "train ppo-pcgrl", "benchmark 1", "benchmark 2", "plot"]
+    p = _run(["experiments.cli"], tmp_path)  # no command: the help on stderr, exit 2
+    assert p.returncode == 2 and p.stdout == "" and p.stderr.startswith("usage: raidjax COMMAND")
+    p = _run(["experiments.cli", "train", "mapoca", "--help"], tmp_path)  # forwarded to trainers.mapoca_cli
+    assert p.returncode == 0 and p.stdout.startswith("usage: python -m trainers.mapoca_cli"), p.stderr[-3000:]
+    assert "--total-steps" in p.stdout and "(default: 1)" in p.stdout
+
+
+def test_a_missing_extra_is_named_in_one_line(tmp_path):
+    block = "import sys; sys.modules['optax'] = None; from experiments.cli import main; main({})"  # as if uninstalled
+    p = _run([], tmp_path, block.format("['train', 'mapoca', '--out', 'run']"))
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr[-3000:]
+    assert p.stderr.strip() == ('error: raidjax train mapoca needs optax, which is not installed: pip install -e '
+                                '".[train]" (from a checkout) or pip install "raidjax[train]"')
+    p = _run([], tmp_path, block.format("['render', '--policy', 'runs/x']"))  # render: the simulator's own command
+    assert p.returncode == 2 and p.stderr.strip().startswith(
+        f"error: --policy: value 'runs/x' is not a built-in policy; allowed: one of {POLICIES} (a trained MA-POCA "
+        "run folder renders with python -m trainers.render, which needs pip install -e '.[train]')"), p.stderr
+    assert not list(tmp_path.iterdir())
+
+
+def _options(help_text: str) -> dict[str, str]:
+    """``{option: its help block}`` of an argparse ``--help``."""
+    blocks = re.split(r"^  (?=-)", help_text.split("options:", 1)[1], flags=re.M)[1:]
+    return {b.split()[0].rstrip(","): " ".join(b.split()) for b in blocks}
+
+
+@pytest.mark.parametrize("command", ["calibrate", "render", "train mapoca", "train ppo-pcgrl", "benchmark 1",
+                                     "benchmark 2", "plot"])
+def test_every_help_shows_the_defaults(command, capsys):
+    """In-process (the same parsers as ``python -m``): every option that takes a value says its
+    default, or that it is required; flags (``--resume``) have none."""
+    from experiments import cli
+
+    with pytest.raises(SystemExit) as e:
+        cli.main([*command.split(), "--help"])
+    text = capsys.readouterr().out
+    assert e.value.code == 0 and text.startswith("usage: python -m "), text
+    options = _options(text)
+    assert len(options) >= 2, text
+    for name, block in options.items():
+        takes_value = re.match(rf"{re.escape(name)} [A-Z{{]", block)
+        if name != "-h" and takes_value:
+            assert "default" in block or "(required)" in block, f"{command}: {block}"
+    expected = {"calibrate": "(default: 2000)", "render": "(default: 600)", "train mapoca": "(default: cpu)",
+                "train ppo-pcgrl": "(default: 300)", "benchmark 1": "(default: smoke)", "benchmark 2": "(default: cpu)",
+                "plot": "(required)"}
+    assert expected[command] in text
+
+
+def _documented() -> dict[str, set[str]]:
+    """``{command: flags}`` of every ``raidjax COMMAND ...`` line in the README and docs/RESULTS.md
+    (``test_house.py`` checks their ``python -m`` lines the same way)."""
+    text = (ROOT / "README.md").read_text() + (ROOT / "docs" / "RESULTS.md").read_text()
+    out: dict[str, set[str]] = {}
+    pattern = r"\braidjax (calibrate|render|plot|train [\w-]+|benchmark \w+)\b([^`\n|]*)"
+    for command, rest in re.findall(pattern, text):
+        out.setdefault(command, set()).update(re.findall(r"--[a-z][\w-]*", rest))
+    return out
+
+
+DOCUMENTED = _documented()
+
+
+@pytest.mark.parametrize("command", sorted(DOCUMENTED))
+def test_documented_raidjax_commands_exist_with_their_flags(command, capsys):
+    from experiments import cli
+
+    with pytest.raises(SystemExit) as e:
+        cli.main([*command.split(), "--help"])
+    text = capsys.readouterr().out
+    assert e.value.code == 0, f"raidjax {command} is not a command"
+    missing = sorted(f for f in DOCUMENTED[command] if f not in text)
+    assert not missing, f"raidjax {command} has no flag {missing}"

@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
+from raidjax.sharding import put_batch
 from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import PRESETS, Config
@@ -166,6 +167,7 @@ def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chu
         rf.log(f"train: resumed at chunk {start}/{cfg.num_chunks}")
     else:
         runner, start, seconds_before = init(*inputs), 0, 0.0
+    runner = put_batch(runner, len(runs))  # the runs split over every visible device (raidjax.sharding)
     chunk = jax.jit(jax.vmap(trainer.chunk), donate_argnums=0).lower(runner).compile()
     compile_s = time.perf_counter() - t0
     per_chunk = cfg.updates_per_chunk * cfg.decisions_per_update

@@ -42,6 +42,7 @@ import numpy as np
 
 from raidjax import pcg
 from raidjax.pcg import metrics as pm
+from raidjax.sharding import put_batch
 from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.generate import evaluate, target_groups
@@ -198,6 +199,7 @@ def stage_train(run: RunFolder, scale: Scale, seed: int) -> dict:
         run.log(f"train: initialised (compile included) in {fmt_seconds(time.perf_counter() - t_start)}")
     else:
         run.log(f"train: resumed from checkpoint at update {start}/{total}")
+    runner = put_batch(runner, lr.G)  # the groups split over every visible device (raidjax.sharding)
     rows = _read_train_csv(run.out / "csv" / "ppo_train.csv", start)
     wall0 = rows[-1]["wall_s"] if rows else 0.0
 

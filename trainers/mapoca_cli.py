@@ -23,6 +23,7 @@ import jax
 import numpy as np
 
 import raidjax
+from raidjax.sharding import put_batch
 from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, machine, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import Config, load_config
@@ -101,6 +102,7 @@ def main(argv=None) -> dict:
         print(f"resumed from the checkpoint at update {meta['update']}", flush=True)
     else:  # a new run, or one stopped before its first checkpoint
         runner, start_chunk, seconds_before = init(keys), 0, 0.0
+    runner = put_batch(runner, args.seeds)  # the seeds split over every visible device (raidjax.sharding)
     chunk = jax.jit(jax.vmap(trainer.chunk), donate_argnums=0).lower(runner).compile()
     compile_s = time.perf_counter() - t0
     print(f"compiled in {compile_s:.1f}s; {cfg.num_updates} updates x {cfg.decisions_per_update} decisions "

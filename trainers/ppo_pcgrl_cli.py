@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg
+from raidjax.sharding import put_batch
 from raidjax.utils import HelpFormatter, atomic_write, finite_json, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.generate import evaluate, target_groups
@@ -119,6 +120,7 @@ def main(argv=None) -> dict | None:
         runner, _, meta = checkpoint.restore(ckpt, jax.eval_shape(init_v, keys, tg), quarantine=True)
         start = int(meta["update"])
         print(f"resumed from the checkpoint at update {start}", flush=True)
+    runner = put_batch(runner, G)  # the groups split over every visible device (raidjax.sharding)
     log = MetricsLog(out, resume_update=start)
     steps_per_update = config.n_arenas * config.n_steps
     total_updates = config.num_updates

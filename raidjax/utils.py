@@ -209,12 +209,16 @@ def run_cli(main, errors: tuple[type[BaseException], ...] = (ValueError,), inter
         if os.environ.get("RAIDJAX_DEBUG"):
             raise
         print(f"interrupted{'; ' + interrupted if interrupted else ''}", file=sys.stderr, flush=True)
-        sys.exit(130)
+        sys.stdout.flush()
+        # Straight out: a normal interpreter exit can crash (SIGSEGV) while XLA threads are still
+        # compiling or running; every user file is written atomically, so nothing is half-written.
+        os._exit(130)
 
 
-def finite_json(obj, **kwargs) -> str:
+def finite_json(obj, digits: int | None = None, **kwargs) -> str:
     """``json.dumps`` with NaN and infinities written as ``null`` (bare ``NaN`` is not JSON for most
-    parsers) and numpy scalars as numbers; ``kwargs`` go to ``json.dumps``."""
+    parsers), numpy scalars as numbers and, with ``digits``, floats rounded to that many decimals
+    (``0.726``, not float32's ``0.7260000109672546``); ``kwargs`` go to ``json.dumps``."""
     import json
     import math
 
@@ -230,6 +234,8 @@ def finite_json(obj, **kwargs) -> str:
             return clean(x.tolist()) if x.ndim else clean(x.item())
         if isinstance(x, float) and not math.isfinite(x):
             return None
+        if isinstance(x, float) and digits is not None:
+            return round(x, digits)
         return x
 
     return json.dumps(clean(obj), allow_nan=False, **kwargs)

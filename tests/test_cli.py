@@ -174,3 +174,32 @@ def test_documented_raidjax_commands_exist_with_their_flags(command, capsys):
     assert e.value.code == 0, f"raidjax {command} is not a command"
     missing = sorted(f for f in DOCUMENTED[command] if f not in text)
     assert not missing, f"raidjax {command} has no flag {missing}"
+
+
+def test_ctrl_c_is_one_line_saying_how_to_resume(tmp_path):
+    """SIGINT while a trainer starts up: no traceback, exit 130, one line naming --resume."""
+    import signal
+    import time
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    env.pop("RAIDJAX_DEBUG", None)
+    proc = subprocess.Popen([sys.executable, "-m", "trainers.mapoca_cli", "--out", str(tmp_path / "run")], cwd=tmp_path,
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(6)  # past the imports, inside the run
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err[-2000:]
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted") and "--resume" in err
+
+
+def test_json_is_finite_and_rounded():
+    """No bare NaN (invalid JSON for most parsers) and no float32 noise in what users read."""
+    import json
+
+    import numpy as np
+
+    from raidjax.utils import finite_json
+
+    text = finite_json({"w": np.float32(0.726), "nan": float("nan"), "x": [np.float64(0.6759999999999999)]}, 6)
+    assert json.loads(text) == {"w": 0.726, "nan": None, "x": [0.676]} and "NaN" not in text
+    assert json.loads(finite_json({"w": np.float32(0.726)}))["w"] == float(np.float32(0.726))  # no digits: exact

@@ -39,6 +39,8 @@ from typing import Any
 
 from raidjax.utils import atomic_write, finite_json, fmt_seconds, machine
 
+SUMMARY_DIGITS = 6  # decimals of the floats in summary.json and the printed summary (win rates, seconds)
+
 
 class RunFolderError(ValueError):
     """A run folder refused: the message names the folder and what to do."""
@@ -183,7 +185,7 @@ class RunFolder:
         name = "summary.json" if (self.out / "summary.json").exists() else "result.json"
         summary = json.loads((self.out / name).read_text())
         self.log(f"this run has already finished: nothing to do ({self.out / name} unchanged)")
-        print(finite_json(summary), flush=True)
+        print(finite_json(summary, SUMMARY_DIGITS), flush=True)
         return summary
 
     def finish(self, summary: dict) -> dict:
@@ -192,9 +194,9 @@ class RunFolder:
         stages = self.stage_seconds()
         summary = {**summary, "machine": machine(), "stage_seconds": stages, "seconds": sum(stages.values()),
                    "seconds_this_invocation": time.perf_counter() - self.t0}
-        atomic_write(self.out / "summary.json", finite_json(summary, indent=1))
+        atomic_write(self.out / "summary.json", finite_json(summary, SUMMARY_DIGITS, indent=1))
         self.log("finished")
-        print(finite_json(summary), flush=True)
+        print(finite_json(summary, SUMMARY_DIGITS), flush=True)
         return summary
 
 

@@ -136,18 +136,18 @@ def switched(weights, key, obs, state, params):
     return jnp.where(weights["on"], policies.heuristic(key, obs, state, params), policies.noop(key, obs, state, params))
 
 
-def test_policy_with_weights_plays_as_bound_and_compiles_once():
+def test_policy_with_weights_plays_as_bound_and_compiles_once(ref_params, reference_results):
     from raidjax.playtest import _playtest
 
-    key = jax.random.key(3)
-    plain = {p: jax.device_get(raidjax.playtest(key, LOSS, p, N)) for p in (policies.heuristic, policies.noop)}
     before = _playtest._cache_size()
-    for on, p in ((True, policies.heuristic), (False, policies.noop)):
-        got = jax.device_get(raidjax.playtest(key, LOSS, switched, N, weights={"on": jnp.bool_(on)}))
-        for name in got:
-            np.testing.assert_array_equal(got[name], plain[p][name], err_msg=name)
+    on = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, switched, N, weights={"on": jnp.bool_(True)}))
+    for name in on:  # the fixture's plain PT-HR games, game for game
+        np.testing.assert_array_equal(on[name], reference_results[name], err_msg=name)
+    off = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, switched, N, weights={"on": jnp.bool_(False)}))
+    assert (off["damage"] == 0).all() and (off["outcome"] != 1).all()  # a team standing still hurts nobody
     assert _playtest._cache_size() == before + 1  # the second weights reused the program
     # record_episode with weights equals the bound policy too.
+    key = jax.random.key(3)
     trace_w, _ = raidjax.logs.record_episode(key, LOSS, switched, 12, weights={"on": jnp.bool_(True)})
     trace_p, _ = raidjax.logs.record_episode(key, LOSS, policies.heuristic, 12)
     np.testing.assert_array_equal(trace_w.pos, trace_p.pos)

@@ -15,16 +15,27 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 
-PLAYTEST = """
+# One script per device count (a JAX process fixes its device count when it starts): a playtest
+# and its occupancy, then two updates of a MA-POCA run of 4 seeds put on the devices.
+SCRIPT = """
 import sys, numpy as np, jax, raidjax
 raidjax.use_recommended_xla_flags()
+from raidjax.sharding import batch_sharding, put_batch
+from trainers.config import load_config
+from trainers.mapoca import make_trainer
 cfg = raidjax.EnvConfig.from_rules("reference", n_substeps=1, max_decisions=300)
 p = raidjax.make_params(skill_range=13.0, config=cfg)
 r = raidjax.playtest(jax.random.key(0), p, raidjax.policies.heuristic, 64)
 occ = raidjax.playtest_occupancy(jax.random.key(0), p, raidjax.policies.heuristic, 64)
-odd = raidjax.playtest(jax.random.key(0), p, raidjax.policies.heuristic, 6)  # not a multiple of 4: one device
-print(len(r["outcome"].sharding.device_set), len(occ.sharding.device_set), len(odd["outcome"].sharding.device_set))
-np.savez(sys.argv[1], occ=np.asarray(occ), **{k: np.asarray(v) for k, v in r.items()})
+tcfg = load_config("cpu", n_arenas=4, n_steps=4, n_minibatches=2, update_epochs=1, hidden=8, layers=1, heads=2,
+                   updates_per_chunk=2, total_steps=32)
+trainer = make_trainer(tcfg)
+runner = put_batch(jax.jit(jax.vmap(trainer.init))(jax.random.split(jax.random.PRNGKey(0), 4)), 4)
+runner, metrics = jax.jit(jax.vmap(trainer.chunk))(runner)
+print(len(r["outcome"].sharding.device_set), len(occ.sharding.device_set),
+      len(jax.tree.leaves(runner)[0].sharding.device_set), batch_sharding(6) is None)
+np.savez(sys.argv[1] + "_playtest.npz", occ=np.asarray(occ), **{k: np.asarray(v) for k, v in r.items()})
+np.savez(sys.argv[1] + "_mapoca.npz", *[np.asarray(x) for x in jax.tree.leaves((runner.params, metrics))])
 """
 
 
@@ -50,31 +61,11 @@ def same(a: Path, b: Path, float_rtol: float = 0.0):
             np.testing.assert_array_equal(a[k], b[k], err_msg=k)
 
 
-def test_playtest_games_split_over_4_devices_give_the_single_device_results(tmp_path):
-    assert run(PLAYTEST, tmp_path / "four.npz", 4) == ["4", "4", "1"]
-    assert run(PLAYTEST, tmp_path / "one.npz", 1) == ["1", "1", "1"]
-    same(tmp_path / "four.npz", tmp_path / "one.npz")
-
-
-MAPOCA = """
-import sys, numpy as np, jax, raidjax
-raidjax.use_recommended_xla_flags()
-from raidjax.sharding import put_batch
-from trainers.config import load_config
-from trainers.mapoca import make_trainer
-cfg = load_config("cpu", n_arenas=8, n_steps=4, n_minibatches=2, update_epochs=1, hidden=16, updates_per_chunk=2,
-                  total_steps=64)
-trainer = make_trainer(cfg)
-runner = put_batch(jax.jit(jax.vmap(trainer.init))(jax.random.split(jax.random.PRNGKey(0), 4)), 4)
-runner, metrics = jax.jit(jax.vmap(trainer.chunk))(runner)
-print(len(jax.tree.leaves(runner)[0].sharding.device_set))
-np.savez(sys.argv[1], *[np.asarray(x) for x in jax.tree.leaves((runner.params, metrics))])
-"""
-
-
-def test_mapoca_seeds_split_over_4_devices_train_as_on_one(tmp_path):
-    """One seed per device is a batch of 1 where one device has a batch of 4: XLA vectorises the
-    two differently, so float sums round differently (1e-8 here); integers must be equal."""
-    assert run(MAPOCA, tmp_path / "four.npz", 4) == ["4"]
-    assert run(MAPOCA, tmp_path / "one.npz", 1) == ["1"]
-    same(tmp_path / "four.npz", tmp_path / "one.npz", float_rtol=1e-4)
+def test_4_devices_give_the_single_device_outputs(tmp_path):
+    """Playtest: every output bit for bit. MA-POCA: one seed per device is a batch of 1 where one
+    device has a batch of 4, which XLA vectorises differently, so float sums round differently
+    (about 1e-8 here); integers must be equal and floats agree to 1e-6."""
+    assert run(SCRIPT, tmp_path / "four", 4) == ["4", "4", "4", "True"]  # 6 games on 4 devices: unsplit
+    assert run(SCRIPT, tmp_path / "one", 1) == ["1", "1", "1", "True"]
+    same(tmp_path / "four_playtest.npz", tmp_path / "one_playtest.npz")
+    same(tmp_path / "four_mapoca.npz", tmp_path / "one_mapoca.npz", float_rtol=1e-4)

@@ -5,18 +5,20 @@ one action that wins."""
 
 from __future__ import annotations
 
+import flax.linen as flax_nn
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 import pytest
 
 import raidjax
-from raidjax.types import CAST_1, DRAW, N_ACTIONS, WIN
 
-jaxmarl_env = pytest.importorskip("raidjax.wrappers.jaxmarl")
-gymnax_env = pytest.importorskip("raidjax.wrappers.gymnax")
-flax_nn = pytest.importorskip("flax.linen")
-optax = pytest.importorskip("optax")
+# Plain imports, not importorskip: the [dev] extra installs jaxmarl and gymnax, and a broken
+# install must fail here rather than skip.
+import raidjax.wrappers.gymnax as gymnax_env
+import raidjax.wrappers.jaxmarl as jaxmarl_env
+from raidjax.types import CAST_1, DRAW, N_ACTIONS, WIN
 
 SHORT = raidjax.EnvConfig(max_decisions=8, n_substeps=1)
 # Casting slot 1 wins at once: the boss has 1 HP and is in range of the spawn row (18 units away),

@@ -185,18 +185,20 @@ class RunFolder:
         name = "summary.json" if (self.out / "summary.json").exists() else "result.json"
         summary = json.loads((self.out / name).read_text())
         self.log(f"this run has already finished: nothing to do ({self.out / name} unchanged)")
-        print(finite_json(summary, SUMMARY_DIGITS), flush=True)
+        print(finite_json(summary), flush=True)
         return summary
 
     def finish(self, summary: dict) -> dict:
         """Write ``summary.json`` (with the machine, the wall seconds of each stage and their sum)
-        and print it as the last line."""
+        and print it as the last line; floats rounded to ``SUMMARY_DIGITS`` decimals in all three
+        (the file, the line and the returned dict)."""
         stages = self.stage_seconds()
         summary = {**summary, "machine": machine(), "stage_seconds": stages, "seconds": sum(stages.values()),
                    "seconds_this_invocation": time.perf_counter() - self.t0}
-        atomic_write(self.out / "summary.json", finite_json(summary, SUMMARY_DIGITS, indent=1))
+        summary = json.loads(finite_json(summary, SUMMARY_DIGITS))
+        atomic_write(self.out / "summary.json", finite_json(summary, indent=1))
         self.log("finished")
-        print(finite_json(summary, SUMMARY_DIGITS), flush=True)
+        print(finite_json(summary), flush=True)
         return summary
 
 

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from raidjax.env import next_episode, reset, step
-from raidjax.types import LOSS, WIN, Observation, Params, State
+from raidjax.types import Observation, Params, State
 
 
 @struct.dataclass
@@ -53,5 +53,4 @@ def advance(key: jax.Array, state: ArenaState, actions: jax.Array):
     obs_next, game_next = next_episode(k_next, game, state.params)
     pick = lambda a, b: jax.tree.map(lambda x, y: jnp.where(done, x, y), a, b)
     new = ArenaState(game=pick(game_next, game), params=state.params, time=jnp.where(done, 0, state.time + 1))
-    terminated = (game.result == WIN) | (game.result == LOSS)
-    return pick(obs_next, obs), new, reward, terminated, info["truncated"], info, obs
+    return pick(obs_next, obs), new, reward, info["terminated"], info["truncated"], info, obs

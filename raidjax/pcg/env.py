@@ -30,7 +30,7 @@ its own batch of ``n_games`` playtests.
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
@@ -39,7 +39,8 @@ import numpy as np
 from flax import struct
 
 from raidjax import policies
-from raidjax.content import make_params, with_player_skill
+from raidjax.content import REFERENCE_PLAYERS, make_params
+from raidjax.pcg.space import PAPER_SPACE, Space, make_space
 from raidjax.playtest import check_args, playtest
 from raidjax.types import WIN, Params
 
@@ -54,19 +55,19 @@ TICK_FRACTIONS = (-1.0, -0.5, 0.0, 0.5, 1.0)
 HEAVY_VS_LIGHT = (1, 1, 1, 1)  # a style axis: all four parameters high, or all four low
 
 
-def low() -> jax.Array:
-    """Lower bounds ``float32[4]``."""
-    return jnp.asarray(LOW, jnp.float32)
+def low(space: Space = PAPER_SPACE) -> jax.Array:
+    """Lower bounds ``float32[K]`` of ``space`` (default the paper's four)."""
+    return jnp.asarray(space.low)
 
 
-def high() -> jax.Array:
-    """Upper bounds ``float32[4]``."""
-    return jnp.asarray(HIGH, jnp.float32)
+def high(space: Space = PAPER_SPACE) -> jax.Array:
+    """Upper bounds ``float32[K]`` of ``space`` (default the paper's four)."""
+    return jnp.asarray(space.high)
 
 
-def tick() -> jax.Array:
-    """One tick per parameter, ``(max - min) / 6``: ``float32[4]``."""
-    return (high() - low()) / 6.0
+def tick(space: Space = PAPER_SPACE) -> jax.Array:
+    """One tick per parameter, ``(max - min) / 6``: ``float32[K]``."""
+    return (high(space) - low(space)) / 6.0
 
 
 @struct.dataclass
@@ -74,7 +75,8 @@ class PCGParams:
     """Environment parameters.
 
     Attributes:
-        game: base ``raidjax.Params`` (three mages, skill slot 1 with projectile speed 10, cost 1).
+        game: base ``raidjax.Params`` (``base_game``: three mages, skill slot 1 with projectile
+            speed 10, cost 1, unless another team was chosen).
         target_low, target_high: ``float32[]``; the target is fixed when they are equal, else
             drawn uniformly per episode.
         band: ``float32[]`` early-termination half-width (0.02).
@@ -99,6 +101,8 @@ class PCGParams:
             MA-POCA team from ``trainers.mapoca.load_policy``).
         tester_weights: ``None``, or the tester's weights (a pytree of arrays, traced: other
             weights of the same shapes reuse the compiled step).
+        space: the edited parameters and their bounds (static; ``raidjax.pcg.space``; default the
+            paper's four, ``PAPER_SPACE``). ``K = space.size`` below.
     """
 
     game: Params
@@ -113,6 +117,7 @@ class PCGParams:
     goal_axis: tuple[int, ...] | None = struct.field(pytree_node=False, default=None)
     tester: Callable = struct.field(pytree_node=False, default=policies.heuristic)
     tester_weights: Any = None
+    space: Space = struct.field(pytree_node=False, default=PAPER_SPACE)
 
 
 @struct.dataclass
@@ -120,14 +125,15 @@ class PCGState:
     """One generator episode.
 
     Attributes:
-        skill: ``float32[4]`` range, cool time, cast time, coefficient.
+        skill: ``float32[K]`` the edited parameters (the paper's: range, cool time, cast time,
+            coefficient).
         target: ``float32[]`` target win rate.
         win_rate: ``float32[]`` last measured win rate.
         edits: ``int32[]`` edits made this episode.
         done: ``bool[]`` the episode has ended (``step_autoreset`` resets on the next call).
         reached: ``bool[]`` some measurement after an edit fell within the band.
         games: ``float32[]`` games behind ``win_rate`` (``n_games``, more when pooled).
-        goal: ``float32[4]`` the episode's style goal (an end of ``goal_axis``; the start skill
+        goal: ``float32[K]`` the episode's style goal (an end of ``goal_axis``; the start skill
             when there is no axis).
     """
 
@@ -141,26 +147,31 @@ class PCGState:
     goal: jax.Array
 
 
-_BASE: list[Params] = []
+_BASE: dict[tuple[str, ...], Params] = {}
+GENERATOR_MAGE = {"skill1.projectile_speed": 10.0, "skill1.cost": 1.0}  # the reference generator's mage skill
 
 
-def base_game() -> Params:
-    """The base content (built once with ``raidjax.make_params``): ``Params`` with ``U = 4``."""
-    if not _BASE:
+def base_game(players: tuple[str, ...] = REFERENCE_PLAYERS) -> Params:
+    """The base content (built once per team with ``raidjax.make_params``): ``Params`` with
+    ``U = len(players) + 1``. Every mage's skill slot 1 is the reference generator's (projectile
+    speed 10, cost 1); other classes keep their catalogue presets."""
+    players = tuple(players)
+    if players not in _BASE:
         with jax.ensure_compile_time_eval():  # concrete arrays even when first called under jit
-            _BASE.append(make_params(**{"skill1.projectile_speed": 10.0, "skill1.cost": 1.0}))
-    return _BASE[0]
+            _BASE[players] = make_params(players=list(players), player_overrides=[
+                GENERATOR_MAGE if c == "mage" else {} for c in players])
+    return _BASE[players]
 
 
-def check_axis(goal_axis) -> tuple[int, ...] | None:
+def check_axis(goal_axis, size: int = N_PARAMS) -> tuple[int, ...] | None:
     """``goal_axis`` as a tuple of ints (``None`` stays ``None``); raises ``ValueError`` naming the
-    field, the value and what is allowed unless it is 4 signs in {-1, 0, 1}."""
+    field, the value and what is allowed unless it is ``size`` signs in {-1, 0, 1}."""
     if goal_axis is None:
         return None
     axis = tuple(goal_axis)
-    if len(axis) != N_PARAMS or any(v not in (-1, 0, 1) for v in axis):
-        raise ValueError(f"goal_axis: value {goal_axis} must be {N_PARAMS} signs, each -1, 0 or +1 "
-                         f"(for {PARAM_NAMES})")
+    if len(axis) != size or any(v not in (-1, 0, 1) for v in axis):
+        raise ValueError(f"goal_axis: value {goal_axis} must be {size} signs, each -1, 0 or +1 "
+                         f"(one per edited parameter{', ' + str(PARAM_NAMES) if size == N_PARAMS else ''})")
     return tuple(int(v) for v in axis)
 
 
@@ -188,6 +199,7 @@ def make_pcg_params(
     *, target: float | tuple[float, float] = (0.1, 0.7), n_games: int = 100, max_edits: int = 40,
     band: float = 0.02, strict_length: bool = False, observe_target: bool = True, pool_repeats: bool = False,
     goal_axis: tuple[int, ...] | None = None, tester: Callable = policies.heuristic, tester_weights: Any = None,
+    parameters: Sequence[str] | None = None, players: Sequence[str] = REFERENCE_PLAYERS,
 ) -> PCGParams:
     """Build ``PCGParams`` on the host.
 
@@ -195,6 +207,8 @@ def make_pcg_params(
         target: a fixed target win rate, or ``(low, high)`` to draw one uniformly per episode.
         n_games, max_edits, band, strict_length, observe_target, pool_repeats, goal_axis, tester,
             tester_weights: see ``PCGParams``.
+        parameters: the edited parameters (``raidjax.pcg.space`` names; ``None``: the paper's four).
+        players: the team's class presets (``base_game``); the default is the paper's three mages.
 
     Returns:
         ``PCGParams``.
@@ -208,42 +222,69 @@ def make_pcg_params(
     if n_games < 1 or max_edits < 1:
         raise ValueError(f"n_games={n_games}, max_edits={max_edits}: both must be >= 1")
     f = lambda x: np.float32(x)
-    game = base_game()
+    space = make_space(parameters, players)
+    game = base_game(tuple(players))
     check_args(game, n_games, tester, tester_weights)  # a hashable callable; weights a pytree of arrays
     return PCGParams(game=game, target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
                      max_edits=max_edits, strict_length=strict_length, observe_target=observe_target,
-                     pool_repeats=pool_repeats, goal_axis=check_axis(goal_axis), tester=tester,
-                     tester_weights=tester_weights)
+                     pool_repeats=pool_repeats, goal_axis=check_axis(goal_axis, space.size), tester=tester,
+                     tester_weights=tester_weights, space=space)
 
 
-def skill_params(game: Params, skill: jax.Array) -> Params:
-    """Put ``skill`` (``float32[4]``) into every player's skill slot 1 of ``game``; returns ``Params``."""
-    return with_player_skill(game, **dict(zip(PARAM_NAMES, skill, strict=True)))
+def skill_params(game: Params, skill: jax.Array, space: Space = PAPER_SPACE) -> Params:
+    """Write ``skill`` (``float32[K]``) into ``game`` at ``space``'s fields (default: every player's
+    skill slot 1, the paper's four); returns ``Params``."""
+    return space.apply(game, skill)
 
 
 def play_outcomes(key: jax.Array, game: Params, skill: jax.Array, n_games: int, tester: Callable = policies.heuristic,
-                  tester_weights: Any = None) -> jax.Array:
+                  tester_weights: Any = None, space: Space = PAPER_SPACE) -> jax.Array:
     """``tester`` (default PT-HR; with ``tester_weights`` as in ``PCGParams``) plays ``n_games`` games
-    with ``skill`` (``float32[4]``); returns ``bool[n_games]`` wins (draws and losses are ``False``)."""
-    results = playtest(key, skill_params(game, skill), tester, n_games, weights=tester_weights)
+    with ``skill`` (``float32[K]`` in ``space``); returns ``bool[n_games]`` wins (draws and losses
+    are ``False``)."""
+    results = playtest(key, skill_params(game, skill, space), tester, n_games, weights=tester_weights)
     return results["outcome"] == WIN
 
 
 def measure(key: jax.Array, params: PCGParams, skill: jax.Array, n_games: int | None = None) -> jax.Array:
     """Win rate ``float32[]`` of ``skill`` over ``n_games`` (default ``params.n_games``) games of
     ``params.tester``."""
-    wins = play_outcomes(key, params.game, skill, n_games or params.n_games, params.tester, params.tester_weights)
+    wins = play_outcomes(key, params.game, skill, n_games or params.n_games, params.tester, params.tester_weights,
+                         params.space)
     return jnp.mean(wins.astype(jnp.float32))
 
 
-def apply_action(skill: jax.Array, action: jax.Array) -> jax.Array:
-    """Edit a skill: ``action`` int32[4] in 0..4 -> {-1, -1/2, 0, +1/2, +1} ticks, clipped to bounds.
+def box_grid(points: int, space: Space = PAPER_SPACE) -> np.ndarray:
+    """A grid over ``space``'s box (default the paper's four): ``points`` evenly spaced values per
+    parameter, bounds included (1 = the box's centre), every combination: ``float32[points**K, K]``
+    (first parameter slowest). Raises ``ValueError`` unless ``points >= 1``."""
+    if not isinstance(points, int) or points < 1:
+        raise ValueError(f"points: value {points!r}; allowed: a whole number >= 1")
+    axes = [np.linspace(lo, hi, points) if points > 1 else np.asarray([(lo + hi) / 2])
+            for lo, hi in zip(space.low, space.high, strict=True)]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, space.size).astype(np.float32)
+
+
+def box_probes(space: Space = PAPER_SPACE) -> np.ndarray:
+    """The box's centre, then for each parameter its lower and its upper bound with the others at
+    the centre: ``float32[1 + 2K, K]`` (a check that grows linearly with ``K``)."""
+    centre = (space.low + space.high) / 2
+    rows = [centre]
+    for j in range(space.size):
+        for bound in (space.low[j], space.high[j]):
+            rows.append(centre.copy())
+            rows[-1][j] = bound
+    return np.stack(rows).astype(np.float32)
+
+
+def apply_action(skill: jax.Array, action: jax.Array, space: Space = PAPER_SPACE) -> jax.Array:
+    """Edit a skill: ``action`` int32[K] in 0..4 -> {-1, -1/2, 0, +1/2, +1} ticks, clipped to ``space``'s bounds.
 
     Returns:
-        ``float32[4]``.
+        ``float32[K]``.
     """
     frac = jnp.asarray(TICK_FRACTIONS, jnp.float32)[action]
-    return jnp.clip(skill + frac * tick(), low(), high())
+    return jnp.clip(skill + frac * tick(space), low(space), high(space))
 
 
 def reward_fn(target: jax.Array, w_prev: jax.Array, w_new: jax.Array) -> jax.Array:
@@ -257,49 +298,51 @@ def in_band(params: PCGParams, target: jax.Array, w: jax.Array) -> jax.Array:
 
 
 def observe_pcg(state: PCGState, params: PCGParams) -> jax.Array:
-    """Observation: the 4 parameters min-max scaled to [0, 1], then target and last win rate when
+    """Observation: the K parameters min-max scaled to [0, 1], then target and last win rate when
     ``params.observe_target``, then ``sqrt(100 / games)`` when ``params.pool_repeats``, then the
     offset to the style goal (scaled like the parameters, in [-1, 1]) when ``params.goal_axis``:
-    ``float32[obs_size(params)]`` (4 to 11)."""
-    x = (state.skill - low()) / (high() - low())
+    ``float32[obs_size(params)]`` (4 to 11 for the paper's four)."""
+    lo, hi = low(params.space), high(params.space)
+    x = (state.skill - lo) / (hi - lo)
     if params.observe_target:
         x = jnp.concatenate([x, jnp.stack([state.target, state.win_rate])])
     if params.pool_repeats:
         x = jnp.concatenate([x, jnp.sqrt(100.0 / state.games)[None]])
     if params.goal_axis is not None:
-        x = jnp.concatenate([x, (state.goal - state.skill) / (high() - low())])
+        x = jnp.concatenate([x, (state.goal - state.skill) / (hi - lo)])
     return x.astype(jnp.float32)
 
 
 def obs_size(params: PCGParams) -> int:
-    """Length of the observation vector (4 to 11)."""
-    return (N_PARAMS * (1 + int(params.goal_axis is not None))
+    """Length of the observation vector (K to 2K + 3)."""
+    return (params.space.size * (1 + int(params.goal_axis is not None))
             + 2 * int(params.observe_target) + int(params.pool_repeats))
 
 
-def squared_ticks(skill: jax.Array, other: jax.Array) -> jax.Array:
+def squared_ticks(skill: jax.Array, other: jax.Array, space: Space = PAPER_SPACE) -> jax.Array:
     """Squared distance in ticks, ``sum(((skill - other) / tick)**2)``: ``float32[...]`` for
-    ``float32[..., 4]`` inputs. Squared, so that moving several parameters a little costs less
+    ``float32[..., K]`` inputs. Squared, so that moving several parameters a little costs less
     than moving one a lot."""
-    return jnp.sum(((skill - other) / tick()) ** 2, -1)
+    return jnp.sum(((skill - other) / tick(space)) ** 2, -1)
 
 
-def draw_goal(key: jax.Array, axis: tuple[int, ...]) -> jax.Array:
-    """A style goal at one end of ``axis`` (static, ``check_axis``): ``float32[4]`` (see
+def draw_goal(key: jax.Array, axis: tuple[int, ...], space: Space = PAPER_SPACE) -> jax.Array:
+    """A style goal at one end of ``axis`` (static, ``check_axis``): ``float32[K]`` (see
     ``PCGParams.goal_axis``). The keys are folded from ``key`` with their own numbers, so a goal
     never changes the episode's skill, target or playtests."""
-    upper = jax.random.bernoulli(jax.random.fold_in(key, 13), 0.5, (N_PARAMS,))  # 0-signed parameters
+    upper = jax.random.bernoulli(jax.random.fold_in(key, 13), 0.5, (space.size,))  # 0-signed parameters
     signs = jnp.asarray(axis, jnp.int32)
     upper = jnp.where(signs == 0, upper, (signs > 0) == jax.random.bernoulli(jax.random.fold_in(key, 17), 0.5))
-    return jnp.where(upper, high(), low())
+    return jnp.where(upper, high(space), low(space))
 
 
 def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None):
     k_skill, k_target = jax.random.split(key)
-    skill = jax.random.uniform(k_skill, (N_PARAMS,), minval=low(), maxval=high())
+    space = params.space
+    skill = jax.random.uniform(k_skill, (space.size,), minval=low(space), maxval=high(space))
     if target is None:
         target = jax.random.uniform(k_target, (), minval=params.target_low, maxval=params.target_high)
-    goal = skill if params.goal_axis is None else draw_goal(key, params.goal_axis)
+    goal = skill if params.goal_axis is None else draw_goal(key, params.goal_axis, space)
     return skill, jnp.asarray(target, jnp.float32), goal
 
 
@@ -355,14 +398,14 @@ def step(key: jax.Array, state: PCGState, action: jax.Array, params: PCGParams):
         key: PRNG key for the playtest.
         state: ``PCGState`` of a running episode (stepping an ended one keeps editing; use
             ``step_autoreset`` for rollouts).
-        action: ``int32[4]`` choices in 0..4.
+        action: ``int32[K]`` choices in 0..4.
         params: ``PCGParams``.
 
     Returns:
         ``(obs, state, reward, done, info)``: ``float32[obs_size]``, ``PCGState``, ``float32[]``,
         ``bool[]``, dict with ``win_rate``, ``edits``, ``reached``, ``valid``.
     """
-    skill = apply_action(state.skill, action)
+    skill = apply_action(state.skill, action, params.space)
     new, reward = advance(state, skill, measure(key, params, skill), params)
     info = {"win_rate": new.win_rate, "edits": new.edits, "reached": new.reached, "valid": jnp.bool_(True)}
     return observe_pcg(new, params), new, reward, new.done, info
@@ -381,7 +424,7 @@ def step_autoreset(key: jax.Array, state: PCGState, action: jax.Array, params: P
     """
     k_new, k_play = jax.random.split(key)
     fresh_skill, fresh_target, fresh_goal = _fresh(k_new, params, None)
-    skill = jnp.where(state.done, fresh_skill, apply_action(state.skill, action))
+    skill = jnp.where(state.done, fresh_skill, apply_action(state.skill, action, params.space))
     w = measure(k_play, params, skill)
     edited, reward = advance(state, skill, w, params)
     started = _started(skill, fresh_target, w, fresh_goal, params)

@@ -196,7 +196,7 @@ def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, thresh
     per group the SD of each parameter and of PC1.
 
     Args:
-        skills: ``[n, 4]`` generated skills (any groups pooled, e.g. all methods and targets).
+        skills: ``[n, K]`` generated skills (any groups pooled, e.g. all methods and targets).
         errors: ``[n]`` ``|W_t - W_c|``.
         groups: ``[n]`` hashable labels, e.g. ``"PPO|0.3"``.
         threshold: error cut-off.
@@ -225,7 +225,7 @@ def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, thresh
     for g in np.unique(groups[keep]):
         m = groups[keep] == g
         n = int(m.sum())
-        out[g] = {"n": n, "param_sd": (xn[m].std(0) if n > 1 else np.full(4, np.nan)).tolist(),
+        out[g] = {"n": n, "param_sd": (xn[m].std(0) if n > 1 else np.full(x.shape[1], np.nan)).tolist(),
                   "pc1_sd": float(proj[m].std()) if n > 1 else float("nan"),
                   "pc1_own_sd": float(((xn[m] - xn[m].mean(0)) @ first_pc(xn[m])).std()) if n > 1 else float("nan")}
     return out

@@ -279,7 +279,7 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
     straight, m_straight = chunk(r1)
     assert m1["loss"].shape == (2,) and int(straight.update[0]) == cfg.num_updates
     assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves((m1, m_straight, straight.params)))
-    assert set(np.unique(np.asarray(straight.ranges))) <= {9.0, 13.0}
+    assert set(np.unique(np.asarray(straight.skills))) <= {9.0, 13.0}
     # every finished episode is counted in its arena (the range redraw cadence, next_ranges)
     assert np.array_equal(np.asarray(straight.episode.sum(1)), np.asarray(m1["episodes"] + m_straight["episodes"]))
     assert not np.array_equal(np.asarray(straight.params["actor"]["params"]["pi"]["kernel"]),

@@ -12,7 +12,7 @@ import json
 import math
 from pathlib import Path
 
-from raidjax import validate
+from raidjax import catalogue, pcg, validate
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,6 +38,18 @@ class Config:
             GPUs; on CPUs without bfloat16 units it is slower.
         skill_ranges: skill-slot-1 range of every player, drawn from this set (one draw per arena,
             shared by its players).
+        content_box: train over the content generator's whole box instead: every arena draws the
+            generator's parameters (``parameters``; by default the paper's four: the players'
+            skill slot 1 range, cool time, cast time and coefficient) uniformly within their
+            bounds, on the generator's base content (``raidjax.pcg.base_game(players)``), at the
+            ``redraw_every`` cadence; ``skill_ranges`` is then unused. The observation carries
+            every unit's skills (range, damage, cast time; cool time through the recharge timer)
+            and stats, so one network can play every content the generator makes.
+        players: the team's class presets (``raidjax.catalogue.CLASSES``), e.g. a mixed team
+            ``("warrior", "mage", "priest")``; one network plays every member, which tells the
+            classes apart by their observed skills and stats.
+        parameters: the box of ``content_box`` (``raidjax.pcg.space`` names; empty = the paper's
+            four, which need three mages).
         redraw_every: an arena draws a new range at its start and then after every
             ``redraw_every``-th episode (2 = the reference, ``MMORPGEnvController.ResetScene``:
             episodes 1-2, 3-4, ... share a range; 1 = every episode).
@@ -67,6 +79,9 @@ class Config:
     proj_attention: bool = True
     bf16: bool = False
     skill_ranges: tuple[float, ...] = (13.0,)
+    content_box: bool = False
+    players: tuple[str, ...] = ("mage", "mage", "mage")
+    parameters: tuple[str, ...] = ()
     redraw_every: int = 2
     total_steps: int = 1_000_000
     updates_per_chunk: int = 10
@@ -102,6 +117,16 @@ class Config:
                 or not all(_number(r) and 1 <= r <= 20 for r in ranges)):
             raise ValueError(f"skill_ranges: value {ranges!r}; allowed: a non-empty list of numbers in [1, 20]")
         object.__setattr__(self, "skill_ranges", tuple(float(r) for r in ranges))  # JSON lists -> hashable
+        for name in ("players", "parameters"):
+            value = getattr(self, name)
+            if isinstance(value, str) or not isinstance(value, tuple | list) or not all(
+                    isinstance(v, str) for v in value):
+                raise ValueError(f"{name}: value {value!r}; allowed: a list of names")
+            object.__setattr__(self, name, tuple(value))
+        if not self.players or not all(c in catalogue.CLASSES for c in self.players):
+            raise ValueError(f"players: value {list(self.players)}; allowed: 1-8 names of {sorted(catalogue.CLASSES)}")
+        if self.content_box:
+            pcg.make_space(self.parameters, self.players)  # ValueError naming a bad parameter
         if self.hidden % self.heads:
             raise ValueError(f"heads: value {self.heads} must divide hidden = {self.hidden}")
 

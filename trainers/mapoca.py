@@ -38,6 +38,7 @@ import optax
 from flax import struct
 
 import raidjax
+from raidjax import pcg
 from raidjax.content import with_player_skill
 from raidjax.types import DAMAGE_REWARD, WIN, WIN_REWARD, Observation, Params, State
 from trainers import checkpoint
@@ -53,10 +54,10 @@ class Runner:
     opt_state: Any
     env_state: State  # [N]
     obs: Observation  # [N, P, ...]
-    content: Params  # the run's base content (unbatched); each episode sets its skill range
+    content: Params  # the run's base content (unbatched); each episode sets its players' skill slot 1
     range_set: jax.Array  # float32[RANGE_TABLE] skill ranges drawn from (see range_table)
-    ranges: jax.Array  # float32[N] skill range of each arena's current episode
-    episode: jax.Array  # int32[N] episodes each arena has finished (the range redraw cadence)
+    skills: jax.Array  # float32[N, K] drawn content of each arena's current episode (see with_drawn)
+    episode: jax.Array  # int32[N] episodes each arena has finished (the redraw cadence)
     ep_return: jax.Array  # float32[N] team return of the running episodes
     ep_length: jax.Array  # int32[N]
     key: jax.Array  # uint32[2] raw PRNG key
@@ -242,27 +243,60 @@ def next_ranges(key: jax.Array, ranges: jax.Array, episode: jax.Array, done: jax
     Returns:
         ``(ranges float32[N], episode int32[N], redrawn bool[N])``.
     """
-    episode = episode + done.astype(jnp.int32)
-    redrawn = done & (episode % every == 0)
+    episode, redrawn = next_draws(episode, done, every)
     fresh = jax.random.choice(key, range_set, ranges.shape)
     return jnp.where(redrawn, fresh, ranges), episode, redrawn
 
 
-def make_trainer(config: Config, base_params: Params | None = None, redraw_ranges: bool | None = None) -> Trainer:
+def next_draws(episode: jax.Array, done: jax.Array, every: int) -> tuple[jax.Array, jax.Array]:
+    """The redraw cadence of ``next_ranges`` for any drawn content: ``(episode int32[N], redrawn
+    bool[N])`` from finished-episode counts ``int32[N]`` and ``done`` ``bool[N]``."""
+    episode = episode + done.astype(jnp.int32)
+    return episode, done & (episode % every == 0)
+
+
+def with_drawn(config: Config, content: Params, skill: jax.Array) -> Params:
+    """``content`` with one arena's drawn values ``float32[K]`` (``draw_skills``) written in: the
+    players' skill slot 1 range (``K = 1``), or under ``config.content_box`` the generator's
+    parameters (``config.parameters``, ``raidjax.pcg.make_space``)."""
+    if config.content_box:
+        return pcg.make_space(config.parameters, config.players).apply(content, skill)
+    return with_player_skill(content, range=skill[0])
+
+
+def draw_skills(key: jax.Array, config: Config, range_set: jax.Array, n: int) -> jax.Array:
+    """``n`` fresh draws ``float32[n, K]`` (``with_drawn``): a range from ``range_set``, or under
+    ``config.content_box`` a point uniform in the generator's box."""
+    if config.content_box:
+        space = pcg.make_space(config.parameters, config.players)
+        return jax.random.uniform(key, (n, space.size), minval=space.low, maxval=space.high)
+    return jax.random.choice(key, range_set, (n,))[:, None]
+
+
+def make_trainer(config: Config, base_params: Params | None = None, redraw_ranges: bool | None = None,
+                 fixed_content: bool = False) -> Trainer:
     """Build the pure training functions for ``config``.
 
     Args:
         config: hyper-parameters.
-        base_params: default content of ``init`` (default: the reference content).
+        base_params: default content of ``init`` (default: the reference content; under
+            ``config.content_box`` the content generator's, ``raidjax.pcg.base_game()``).
         redraw_ranges: draw new skill ranges (every ``config.redraw_every`` episodes of an
             arena, ``next_ranges``; static; default: when ``config.skill_ranges`` has several
             values). ``init(key, content, range_set)`` may give each vmapped run its own content
             and range set; set this ``True`` when any run's set has several values.
+        fixed_content: play ``init``'s content exactly as given, with no range or box draw
+            (static; e.g. a specialist trained on one generated content).
     """
     cfg = config
-    base = raidjax.make_params(skill_range=cfg.skill_ranges[0]) if base_params is None else base_params
+    if base_params is not None:
+        base = base_params
+    else:
+        base = (pcg.base_game(cfg.players) if cfg.content_box
+                else raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0]))
     default_set = range_table(cfg.skill_ranges)
     multi_range = len(cfg.skill_ranges) > 1 if redraw_ranges is None else redraw_ranges
+    multi_range = (multi_range or cfg.content_box) and not fixed_content
     dtype = jnp.bfloat16 if cfg.bf16 else jnp.float32
     actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, dtype)
     critic = Critic(cfg.hidden, cfg.layers, cfg.heads, dtype)
@@ -275,7 +309,8 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
     clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
     tx = optax.chain(*clip, optax.adam(lr, eps=cfg.adam_eps))
-    env_params_of = jax.vmap(lambda content, r: with_player_skill(content, range=r), in_axes=(None, 0))
+    env_params_of = jax.vmap(lambda content, sk: content if fixed_content else with_drawn(cfg, content, sk),
+                             in_axes=(None, 0))
     step_all = jax.vmap(raidjax.step_autoreset)
 
     def init(key: jax.Array, content: Params | None = None, range_set: jax.Array | None = None) -> Runner:
@@ -284,14 +319,14 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         content = base if content is None else content
         range_set = default_set if range_set is None else range_set
         k_a, k_c, k_env, k_rng, k_run = jax.random.split(key, 5)
-        ranges = jax.random.choice(k_rng, range_set, (n,))
-        obs, state = jax.vmap(raidjax.reset)(jax.random.split(k_env, n), env_params_of(content, ranges))
+        skills = draw_skills(k_rng, cfg, range_set, n)
+        obs, state = jax.vmap(raidjax.reset)(jax.random.split(k_env, n), env_params_of(content, skills))
         obs0 = jax.tree.map(lambda x: x[0], obs)
         params = {"actor": actor.init(k_a, obs0),
                   "critic": critic.init(k_c, obs0, jnp.zeros(obs0.alive.shape, jnp.int32))}
         zf = jnp.zeros(n, jnp.float32)
         zi = jnp.zeros(n, jnp.int32)
-        return Runner(params, tx.init(params), state, obs, content, range_set, ranges, zi, zf, zi, k_run,
+        return Runner(params, tx.init(params), state, obs, content, range_set, skills, zi, zf, zi, k_run,
                       jnp.int32(0))
 
     def rollout_step(runner: Runner, _):
@@ -300,15 +335,14 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         action, logp = sample_actions(k_act, actor.apply(p["actor"], obs), obs.alive)
         value, baseline = critic.apply(p["critic"], obs, action)
         nxt, state, _, done, info = step_all(jax.random.split(k_env, n), runner.env_state, action,
-                                             env_params_of(runner.content, runner.ranges))
+                                             env_params_of(runner.content, runner.skills))
         next_value = critic.apply(p["critic"], info["final_observation"], method=Critic.value)
-        ranges, episode, redrawn = next_ranges(k_rng, runner.ranges, runner.episode, done, runner.range_set,
-                                               cfg.redraw_every)
-        if multi_range:  # arenas that drew a new range re-observe their new episode under it
-            fresh = jax.vmap(raidjax.observe)(state, env_params_of(runner.content, ranges))
+        episode, redrawn = next_draws(runner.episode, done, cfg.redraw_every)
+        skills = runner.skills
+        if multi_range:  # arenas that drew a new skill re-observe their new episode under it
+            skills = jnp.where(redrawn[:, None], draw_skills(k_rng, cfg, runner.range_set, n), skills)
+            fresh = jax.vmap(raidjax.observe)(state, env_params_of(runner.content, skills))
             nxt = jax.tree.map(lambda a, b: jnp.where(redrawn.reshape((n,) + (1,) * (a.ndim - 1)), a, b), fresh, nxt)
-        else:
-            ranges = runner.ranges
         reward = team_reward(info, done)
         ep_ret, ep_len = runner.ep_return + reward, runner.ep_length + 1
         won = done & (info["result"] == WIN)
@@ -316,7 +350,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
               "draws": jnp.sum(done & info["truncated"]), "length_sum": jnp.sum(ep_len * done)}
         tr = Transition(obs, action, logp, obs.alive, value, baseline, next_value, reward, done,
                         info["terminated"])
-        runner = runner.replace(env_state=state, obs=nxt, ranges=ranges, episode=episode, key=key,
+        runner = runner.replace(env_state=state, obs=nxt, skills=skills, episode=episode, key=key,
                                 ep_return=jnp.where(done, 0.0, ep_ret), ep_length=jnp.where(done, 0, ep_len))
         return runner, (tr, ep)
 

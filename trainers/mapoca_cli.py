@@ -20,9 +20,11 @@ import time
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 import raidjax
+from raidjax import pcg
 from raidjax.sharding import put_batch
 from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, machine, run_cli, whole_number_arg
 from trainers import checkpoint
@@ -41,6 +43,13 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument("--config", help="JSON file of Config fields, applied after the preset (default: none)")
     ap.add_argument("--skill-range", type=float, nargs="+", help="range(s) of the players' skill; "
                     "several values = drawn per episode (default: the preset's)")
+    ap.add_argument("--content-box", action="store_true", default=None,
+                    help="train over the content generator's whole skill box (range, cool time, cast time, "
+                    "coefficient drawn per episode; Config.content_box) instead of --skill-range")
+    ap.add_argument("--players", nargs="+", help="the team's class presets, e.g. warrior mage priest "
+                    "(default: the preset's, three mages)")
+    ap.add_argument("--parameters", nargs="+", help="the box of --content-box: generator parameter names "
+                    "(raidjax.pcg.space, e.g. skill1.range boss.max_hp=500:3000; default: the paper's four)")
     ap.add_argument("--total-steps", type=whole_number_arg(1),
                     help="environment decisions per seed (default: the preset's)")
     ap.add_argument("--seeds", type=whole_number_arg(1), default=1, help="seeds trained together (vmapped)")
@@ -59,18 +68,28 @@ def parse_args(argv=None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
+def eval_contents(cfg: Config) -> dict[str, raidjax.Params]:
+    """The contents of the final evaluation, by label: one per skill range in ``cfg.skill_ranges``,
+    or under ``cfg.content_box`` the box's centre and each parameter at its bounds
+    (``raidjax.pcg.box_probes``; label: the values joined by ``/``)."""
+    if not cfg.content_box:
+        return {f"{r:g}": raidjax.make_params(players=list(cfg.players), skill_range=r) for r in cfg.skill_ranges}
+    space = pcg.make_space(cfg.parameters, cfg.players)
+    base = pcg.base_game(cfg.players)
+    return {"/".join(f"{v:g}" for v in sk): space.apply(base, jnp.asarray(sk)) for sk in pcg.box_probes(space)}
+
+
 def evaluate(out: Path, cfg: Config, n_seeds: int, key: jax.Array) -> dict:
     """Win rates of every seed's trained team and of PT-HR over ``cfg.eval_games`` games per
-    skill range in ``cfg.skill_ranges`` (same content, same typed PRNG ``key``). Returns a
-    JSON-able dict."""
+    content of ``eval_contents`` (same content, same typed PRNG ``key``). Returns a JSON-able
+    dict (``per_range`` keyed by ``eval_contents``' labels)."""
     per_range = {}
     teams = [load_policy(out, seed=s) for s in range(n_seeds)]  # one policy, n_seeds weights: one compile
     rate = lambda x: round(float(x), 6)  # float32 win rates without their float32 noise (0.726, not 0.72600001)
-    for r in cfg.skill_ranges:
-        content = raidjax.make_params(skill_range=r)
+    for label, content in eval_contents(cfg).items():
         hr = rate(raidjax.win_rate(raidjax.playtest(key, content, raidjax.policies.heuristic, cfg.eval_games)))
         wins = [rate(raidjax.win_rate(raidjax.playtest(key, content, p, cfg.eval_games, weights=w))) for p, w in teams]
-        per_range[f"{r:g}"] = {"win_rate": rate(np.mean(wins)), "win_rate_per_seed": wins,
+        per_range[label] = {"win_rate": rate(np.mean(wins)), "win_rate_per_seed": wins,
                                "heuristic_win_rate": hr}
     return {
         "win_rate": rate(np.mean([v["win_rate"] for v in per_range.values()])),
@@ -83,7 +102,10 @@ def main(argv=None) -> dict:
     """Train (or resume), log, checkpoint, evaluate; print and return the final JSON object."""
     t_start = time.perf_counter()
     args = parse_args(argv)
-    cfg = load_config(args.preset, args.config, skill_ranges=args.skill_range, total_steps=args.total_steps,
+    cfg = load_config(args.preset, args.config, skill_ranges=args.skill_range, content_box=args.content_box,
+                      players=args.players and tuple(args.players),
+                      parameters=args.parameters and tuple(args.parameters),
+                      total_steps=args.total_steps,
                       checkpoint_every=args.checkpoint_every, updates_per_chunk=args.updates_per_chunk,
                       eval_games=args.eval_games)
     settings = {"trainer": "mapoca", "preset": args.preset, "seeds": args.seeds, "seed": args.seed,
@@ -136,7 +158,8 @@ def main(argv=None) -> dict:
         print(f"stopped after chunk {end_chunk}/{cfg.num_chunks} (--max-chunks); rerun with --resume to continue",
               flush=True)
         return {"stopped_at_chunk": end_chunk}
-    result = {"preset": args.preset, "skill_ranges": list(cfg.skill_ranges), "seeds": args.seeds,
+    result = {"preset": args.preset, "skill_ranges": list(cfg.skill_ranges),
+              "content_box": cfg.content_box, "seeds": args.seeds,
               "env_steps": end_chunk * per_chunk,
               "env_steps_per_s": round(done_here * per_chunk * args.seeds / max(train_s, 1e-9), 1),
               "compile_seconds": round(compile_s, 2), "train_seconds": round(seconds_before + train_s, 2)}

@@ -8,13 +8,15 @@ protocol: the library behind ``trainers.ppo_pcgrl_cli`` and ``experiments.benchm
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import cache
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from raidjax import pcg
+from raidjax import pcg, policies
 from trainers.ppo_pcgrl import PPOConfig, env_params, make_generator_policy
 
 
@@ -33,13 +35,13 @@ def target_groups(config: PPOConfig, seeds: int) -> tuple[np.ndarray, list[tuple
 
 
 @cache
-def method_policy(hidden: tuple, greedy: bool = False):
+def method_policy(hidden: tuple, greedy: bool = False, n_params: int = pcg.N_PARAMS):
     """One generator policy for PPO, PCG-HR and PCG-RD, so that ``pcg.metrics.generate`` compiles
     once per episode count rather than once per method: ``policy({"net": weights, "method":
-    int32[]}, key, obs, state, params) -> int32[4]`` with method 0 = PPO (``make_generator_policy(hidden,
-    greedy)``), 1 = PCG-HR, 2 = PCG-RD. ``method`` is not batched, so the ``lax.switch`` stays a
+    int32[]}, key, obs, state, params) -> int32[n_params]`` with method 0 = PPO (``make_generator_policy(hidden,
+    greedy, n_params)``), 1 = PCG-HR, 2 = PCG-RD. ``method`` is not batched, so the ``lax.switch`` stays a
     conditional and only the chosen branch runs."""
-    ppo = make_generator_policy(tuple(hidden), greedy)
+    ppo = make_generator_policy(tuple(hidden), greedy, n_params)
 
     def policy(pp, key, obs, state, params):
         return jax.lax.switch(pp["method"], [
@@ -52,7 +54,8 @@ def method_policy(hidden: tuple, greedy: bool = False):
 
 def evaluate(key: jax.Array, config: PPOConfig, weights, labels: list, *, gen_games: int, greedy: bool,
              episodes: int, eval_games: int, baselines: bool = True, strict_length: bool | None = None,
-             max_edits: int | None = None) -> dict[str, dict[str, np.ndarray]]:
+             max_edits: int | None = None, tester: Callable = policies.heuristic,
+             tester_weights: Any = None) -> dict[str, dict[str, np.ndarray]]:
     """Generate with PPO (every trained group), PCG-HR and PCG-RD in the training environment.
 
     Args:
@@ -66,14 +69,17 @@ def evaluate(key: jax.Array, config: PPOConfig, weights, labels: list, *, gen_ga
         eval_games: games re-measuring each kept skill (0: keep the generator's own last measurement).
         baselines: also run PCG-HR and PCG-RD.
         strict_length, max_edits: override the training environment's (``None``: keep).
+        tester, tester_weights: the playtesting team of every measurement (``env_params``; PT-HR
+            by default).
 
     Returns:
         ``{method: pcg.metrics.generate output}`` (numpy arrays, PPO's pooled over groups).
     """
-    p = env_params(config).replace(n_games=gen_games)  # the training env; generate sets the targets
+    # the training env (generate sets the targets)
+    p = env_params(config, tester=tester, tester_weights=tester_weights).replace(n_games=gen_games)
     p = p.replace(strict_length=p.strict_length if strict_length is None else strict_length,
                   max_edits=p.max_edits if max_edits is None else max_edits)
-    policy = method_policy(tuple(config.hidden), greedy)
+    policy = method_policy(tuple(config.hidden), greedy, config.space.size)
     n_seeds = max(s for _, s in labels) + 1
     eps = max(1, episodes // n_seeds)
     parts = []

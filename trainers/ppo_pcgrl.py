@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from collections.abc import Callable
 from functools import cache
 from typing import Any, NamedTuple
 
@@ -20,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from raidjax import pcg, xla_flags
+from raidjax import pcg, policies, xla_flags
 from trainers.config import check_fields, known_fields
 
 
@@ -61,6 +62,10 @@ class PPOConfig:
     # paid to end near its goal, spreading its skills along the axis. None / 0 = off.
     goal_axis: tuple | None = None
     goal_cost: float = 0.0
+    # The edited parameters (raidjax.pcg.space names, e.g. ("skill1.range", "boss.max_hp=500:3000")) and
+    # the team's class presets; () = the paper's four on three mages.
+    parameters: tuple = ()
+    players: tuple = ("mage", "mage", "mage")
 
     def __post_init__(self):
         check_fields(self, {
@@ -69,8 +74,14 @@ class PPOConfig:
             **dict.fromkeys(("lr", "clip_eps", "reward_scale"), (0, None, "> 0")),
             "gamma": (0, 1), "lam": (0, 1),
             **dict.fromkeys(("ent_coef", "vf_coef", "max_grad_norm", "edit_cost", "goal_cost"), (0, None))})
+        for name in ("parameters", "players"):  # JSON gives lists; static fields must be hashable
+            value = getattr(self, name)
+            if not isinstance(value, tuple | list) or not all(isinstance(v, str) for v in value):
+                raise ValueError(f"{name}: value {value!r}; allowed: a list of names")
+            object.__setattr__(self, name, tuple(value))
+        space = self.space  # checks the names against the team (ValueError naming the parameter)
         if self.goal_axis is not None:  # JSON gives a list; the env needs a hashable static field
-            object.__setattr__(self, "goal_axis", pcg.check_axis(self.goal_axis))
+            object.__setattr__(self, "goal_axis", pcg.check_axis(self.goal_axis, space.size))
         if (self.goal_axis is None) != (self.goal_cost == 0):
             raise ValueError(f"goal_cost: value {self.goal_cost} with goal_axis {self.goal_axis}: a style goal "
                              "needs both (goal_cost > 0 and an axis such as (1, 1, 1, 1)), or neither")
@@ -78,6 +89,11 @@ class PPOConfig:
         if batch % self.n_minibatches:
             raise ValueError(f"n_minibatches: value {self.n_minibatches}; allowed: a divisor of n_arenas * n_steps "
                              f"= {batch}")
+
+    @property
+    def space(self) -> pcg.Space:
+        """The edited parameters (``raidjax.pcg.make_space``: ``parameters`` for ``players``, or the paper's four)."""
+        return pcg.make_space(self.parameters, self.players)
 
     @property
     def num_updates(self) -> int:
@@ -110,22 +126,23 @@ PRESETS = {
 
 
 class ActorCritic(nn.Module):
-    """MLP actor (4 branches x 5 logits) and MLP critic on a ``float32[D]`` observation."""
+    """MLP actor (``n_params`` branches x 5 logits) and MLP critic on a ``float32[D]`` observation."""
 
     hidden: tuple = (64, 64)
+    n_params: int = pcg.N_PARAMS
 
     @nn.compact
     def __call__(self, x):
-        """Returns ``(logits float32[..., 4, 5], value float32[...])``."""
+        """Returns ``(logits float32[..., n_params, 5], value float32[...])``."""
         def mlp(h, name):
             for i, n in enumerate(self.hidden):
                 h = nn.tanh(nn.Dense(n, kernel_init=nn.initializers.orthogonal(np.sqrt(2)), name=f"{name}{i}")(h))
             return h
 
-        logits = nn.Dense(pcg.N_PARAMS * pcg.N_CHOICES, kernel_init=nn.initializers.orthogonal(0.01),
+        logits = nn.Dense(self.n_params * pcg.N_CHOICES, kernel_init=nn.initializers.orthogonal(0.01),
                           name="pi")(mlp(x, "a"))
         value = nn.Dense(1, kernel_init=nn.initializers.orthogonal(1.0), name="v")(mlp(x, "c"))
-        return logits.reshape(x.shape[:-1] + (pcg.N_PARAMS, pcg.N_CHOICES)), value[..., 0]
+        return logits.reshape(x.shape[:-1] + (self.n_params, pcg.N_CHOICES)), value[..., 0]
 
 
 class Transition(NamedTuple):
@@ -138,11 +155,16 @@ class Transition(NamedTuple):
     valid: jax.Array
 
 
-def env_params(config: PPOConfig, target=None) -> pcg.PCGParams:
-    """``PCGParams`` for training; ``target`` (``float32[2]`` low/high, traced ok) overrides the config."""
+def env_params(config: PPOConfig, target=None, tester: Callable = policies.heuristic,
+               tester_weights: Any = None) -> pcg.PCGParams:
+    """``PCGParams`` for training; ``target`` (``float32[2]`` low/high, traced ok) overrides the
+    config; ``tester`` / ``tester_weights``: the playtesting team (``pcg.PCGParams.tester``; PT-HR
+    by default, or e.g. ``trainers.mapoca.load_policy``'s trained team and its weights)."""
     p = pcg.make_pcg_params(target=tuple(config.target), n_games=config.n_games, max_edits=config.max_edits,
                             strict_length=config.strict_length, observe_target=config.observe_target,
-                            pool_repeats=config.pool_repeats, goal_axis=config.goal_axis)
+                            pool_repeats=config.pool_repeats, goal_axis=config.goal_axis, tester=tester,
+                            tester_weights=tester_weights, parameters=config.parameters or None,
+                            players=config.players)
     if target is not None:
         target = jnp.asarray(target, jnp.float32)
         p = p.replace(target_low=target[0], target_high=target[1])
@@ -156,7 +178,8 @@ def edit_penalty(config: PPOConfig, action: jax.Array, old: pcg.PCGState, new: p
     sums to ``goal_cost`` times the final minus the start squared distance to the goal.
     Returns ``float32[...]`` (meaningless on reset transitions, which the learner masks)."""
     ticks = jnp.abs(jnp.asarray(pcg.TICK_FRACTIONS)[action]).sum(-1)
-    to_goal = pcg.squared_ticks(new.skill, new.goal) - pcg.squared_ticks(old.skill, old.goal)
+    space = config.space
+    to_goal = pcg.squared_ticks(new.skill, new.goal, space) - pcg.squared_ticks(old.skill, old.goal, space)
     return config.edit_cost * ticks + config.goal_cost * to_goal
 
 
@@ -168,11 +191,13 @@ def _logp_entropy(logits, action):
     return logp, ent
 
 
-def make_train(config: PPOConfig):
+def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_weights: Any = None):
     """Build the learner.
 
     Args:
         config: ``PPOConfig``.
+        tester, tester_weights: the playtesting team the generator is trained against (see
+            ``env_params``; default PT-HR, the paper's).
 
     Returns:
         ``train(key, target=None) -> (runner, metrics)`` (jittable, vmappable), with helpers as
@@ -189,7 +214,7 @@ def make_train(config: PPOConfig):
         warnings.warn("vmapping several PPO-PCGRL learners can deadlock XLA:CPU's concurrency-optimised "
                       "scheduler; call raidjax.use_recommended_xla_flags() before the first JAX computation "
                       "(raidjax.xla_flags)", RuntimeWarning, stacklevel=2)
-    net = ActorCritic(tuple(config.hidden))
+    net = ActorCritic(tuple(config.hidden), config.space.size)
     batch = config.n_arenas * config.n_steps
     mb = batch // config.n_minibatches
 
@@ -200,7 +225,7 @@ def make_train(config: PPOConfig):
     tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(schedule, eps=1e-5))
 
     def init(key, target=None):
-        p = env_params(config, target)
+        p = env_params(config, target, tester, tester_weights)
         k_net, k_env, k_run = jax.random.split(key, 3)
         params = net.init(k_net, jnp.zeros((pcg.obs_size(p),)))
         obs, env_state = jax.vmap(lambda k: pcg.reset(k, p))(jax.random.split(k_env, config.n_arenas))
@@ -208,7 +233,7 @@ def make_train(config: PPOConfig):
                 "key": jax.random.key_data(k_run), "update": jnp.int32(0)}
 
     def update(runner, target=None):
-        p = env_params(config, target)
+        p = env_params(config, target, tester, tester_weights)
         key = jax.random.wrap_key_data(runner["key"])
         key, k_roll, k_perm = jax.random.split(key, 3)
         params = runner["params"]
@@ -289,12 +314,12 @@ def make_train(config: PPOConfig):
 
 
 @cache
-def make_generator_policy(hidden: tuple, greedy: bool = False):
-    """Generator policy ``policy(net_params, key, obs, state, params) -> int32[4]`` for
+def make_generator_policy(hidden: tuple, greedy: bool = False, n_params: int = pcg.N_PARAMS):
+    """Generator policy ``policy(net_params, key, obs, state, params) -> int32[n_params]`` for
     ``raidjax.pcg.metrics.generate`` (cached, so the same hashable function is reused and jit does
     not recompile). ``greedy`` takes the argmax of each branch (the paper's generation);
     otherwise each branch is sampled."""
-    net = ActorCritic(tuple(hidden))
+    net = ActorCritic(tuple(hidden), n_params)
 
     def policy(net_params, key, obs, state, params):
         logits, _ = net.apply(net_params, obs)

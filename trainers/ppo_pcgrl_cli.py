@@ -18,6 +18,7 @@ import json
 import math
 import os
 import time
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -28,8 +29,9 @@ from raidjax.sharding import put_batch
 from raidjax.utils import HelpFormatter, atomic_write, finite_json, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.generate import evaluate, target_groups
+from trainers.mapoca import load_policy
 from trainers.metrics import MetricsLog, update_rows
-from trainers.ppo_pcgrl import PRESETS, get_config, make_train
+from trainers.ppo_pcgrl import PRESETS, PPOConfig, get_config, make_train
 from trainers.runfolder import RunFolder
 
 
@@ -37,12 +39,20 @@ def _args(argv=None):
     ap = argparse.ArgumentParser(prog="python -m trainers.ppo_pcgrl_cli", description="PPO-PCGRL on raidjax.pcg",
                                  formatter_class=HelpFormatter)
     ap.add_argument("--preset", choices=sorted(PRESETS), default="cpu", help="budget and network preset")
+    ap.add_argument("--config", help="JSON file of PPOConfig fields, applied after the preset and before the "
+                    "flags below (default: none)")
+    ap.add_argument("--players", nargs="+", help="the team's class presets, e.g. warrior mage priest "
+                    "(default: three mages)")
+    ap.add_argument("--parameters", nargs="+", help="the edited parameters (raidjax.pcg.space names, e.g. "
+                    "mage.skill1.range=1:20 boss.max_hp=500:3000; default: the paper's four)")
     ap.add_argument("--total-steps", type=whole_number_arg(1), help="generator steps per group (default: the preset's)")
     ap.add_argument("--seeds", type=whole_number_arg(1), default=1, help="seeds per target group (vmapped)")
     ap.add_argument("--out", default="runs/ppo_pcgrl", help="run folder (new, or holding this run with --resume)")
     ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
                     "checkpoint (same settings; a finished run is left as it is)")
     ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
+    ap.add_argument("--tester", help="playtest with a trained MA-POCA team: its run folder (trainers.mapoca_cli "
+                    "--out; seed 0, sampled actions) instead of PT-HR, in training and evaluation (default: PT-HR)")
     ap.add_argument("--n-games", type=whole_number_arg(1),
                     help="playtest games per training measurement (default: the preset's)")
     ap.add_argument("--n-arenas", type=whole_number_arg(1),
@@ -73,6 +83,21 @@ def _args(argv=None):
     return ap.parse_args(argv)
 
 
+def load_fields(path: str | None) -> dict:
+    """The ``PPOConfig`` fields in the JSON file ``path`` (``{}`` without one); raises ``ValueError``
+    naming the file and what is wrong, or the unknown keys."""
+    if path is None:
+        return {}
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise ValueError(f"--config: cannot read {path} as a JSON object of PPOConfig fields ({e})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"--config: {path} holds a {type(data).__name__}; allowed: a JSON object of PPOConfig fields")
+    PPOConfig.from_dict(data)  # unknown keys and bad values fail here, naming the field
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+
+
 def _rounded(x, key: str = ""):
     """The result's floats for its printed line: seconds to 0.01 s, the rest to 6 decimals (0.132, not
     0.13200000524520874)."""
@@ -89,18 +114,27 @@ def main(argv=None) -> dict | None:
     """Train, checkpoint, evaluate; the last stdout line is one JSON object (also returned)."""
     args = _args(argv)
     t_start = time.perf_counter()
-    config = get_config(args.preset, total_steps=args.total_steps, n_games=args.n_games, n_arenas=args.n_arenas,
-                        lr=args.lr, edit_cost=args.edit_cost, pool_repeats=args.pool_repeats,
-                        ent_coef=args.ent_coef, goal_cost=args.goal_cost, goal_axis=args.goal_axis)
+    flags = dict(total_steps=args.total_steps, n_games=args.n_games, n_arenas=args.n_arenas, lr=args.lr,
+                 edit_cost=args.edit_cost, pool_repeats=args.pool_repeats, ent_coef=args.ent_coef,
+                 goal_cost=args.goal_cost, goal_axis=args.goal_axis,
+                 players=args.players and tuple(args.players), parameters=args.parameters and tuple(args.parameters))
+    flags = {k: v for k, v in flags.items() if v is not None}
+    config = get_config(args.preset, **{**load_fields(args.config), **flags})  # preset, then file, then flags
     evaluation = {k: getattr(args, k) for k in ("eval_episodes", "eval_gen_games", "eval_games", "greedy",
                                                 "no_baselines")}
     settings = {"trainer": "ppo_pcgrl", "preset": args.preset, "seeds": args.seeds, "seed": args.seed,
                 "chunk": args.chunk, "config": config.to_dict(), "evaluation": evaluation}
-    rf = RunFolder(args.out, settings, resume=args.resume, ignore=("evaluation",))
+    tester = {}
+    if args.tester is not None:  # loaded (and checked) before the run folder is touched
+        policy, weights = load_policy(args.tester, seed=0, deterministic=False)
+        tester = {"tester": policy, "tester_weights": weights}
+        # the weights' digest decides whether --resume continues the same run; the folder may move
+        settings.update(tester=checkpoint.digest(weights), tester_run=str(Path(args.tester).resolve()))
+    rf = RunFolder(args.out, settings, resume=args.resume, ignore=("evaluation", "tester_run"))
     if rf.finished:
         return rf.already_finished()
     out = rf.out
-    train = make_train(config)
+    train = make_train(config, **tester)
     pairs, labels = target_groups(config, args.seeds)
     G, chunk = len(labels), max(1, args.chunk)
     keys = jax.random.split(jax.random.key(args.seed), G)
@@ -159,7 +193,7 @@ def main(argv=None) -> dict | None:
     if args.eval_episodes > 0:
         gens = evaluate(jax.random.key(args.seed + 1), config, runner["params"], labels,
                         gen_games=args.eval_gen_games, greedy=args.greedy, episodes=args.eval_episodes,
-                        eval_games=args.eval_games, baselines=not args.no_baselines)
+                        eval_games=args.eval_games, baselines=not args.no_baselines, **tester)
         summ = pcg.metrics.summarize(gens)
         atomic_write(out / "eval.json", finite_json(summ, indent=1))
         for name, s in summ.items():

@@ -1,0 +1,280 @@
+"""Automated content balancing end to end (GAME.md §13): a skill generator whose playtests are
+played by a robust learned team, compared with one trained against the paper's scripted PT-HR.
+
+    python -m experiments.balance --scale {smoke,cpu} --out DIR [--seed N] [--resume]
+
+The question it answers: does content balanced with a scripted tester stay balanced for skilled
+play? Stages (``trainers.runfolder``; rerun with ``--resume`` to continue; the three trainers
+resume mid-training from their own checkpoints, the other stages rerun whole):
+
+1. ``tester``: MA-POCA trained over the generator's whole content box (``trainers.mapoca_cli
+   --content-box``: range, cool time, cast time and coefficient drawn per episode), in ``DIR/tester``.
+2. ``tester_check``: the tester's and PT-HR's win rates over a grid of the box (``grid`` values
+   per parameter, ``grid_games`` games per skill), and Benchmark 1's AdjustedScore on ``heldout``
+   skills drawn from the box with a fixed seed: the tester's win rate ÷ that of a specialist
+   trained on that one skill (all specialists in one vmapped program).
+3. ``generator_learned`` / ``generator_scripted``: PPO-PCGRL (``trainers.ppo_pcgrl_cli``) trained
+   against the tester / against PT-HR, in ``DIR/generator_{learned,scripted}``.
+4. ``generate``: each generator, measuring with its own tester, runs ``episodes`` episodes per
+   target 0.1..0.7 (``gen_games`` games per measurement, sampled actions, episodes end at the
+   ±0.02 band or after ``max_edits``); every final skill is then played by *both* testers with
+   ``eval_games`` games each. Raw outputs: ``generated.npz``, ``csv/generated.csv``.
+5. ``report``: the skill-gap, controllability and diversity tables and figures
+   (``experiments.balance_report``), all recomputable from ``generated.npz``.
+
+The last stdout line is the JSON summary (also ``summary.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import io
+import json
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import raidjax
+from raidjax import pcg
+from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, run_cli
+from trainers import checkpoint, mapoca_cli, ppo_pcgrl_cli
+from trainers.config import PRESETS, Config
+from trainers.generate import evaluate, target_groups
+from trainers.mapoca import load_policy, make_trainer, range_table
+from trainers.ppo_pcgrl import PPOConfig
+from trainers.runfolder import RunFolder
+
+GENERATORS = ("learned", "scripted")  # trained against the MA-POCA tester / against PT-HR
+
+
+@dataclasses.dataclass(frozen=True)
+class Scale:
+    """Budgets of one scale.
+
+    Attributes:
+        tester: ``trainers.config.Config`` overrides on the MA-POCA ``cpu`` preset (``content_box``
+            is always on); the specialists of the AdjustedScore train with the same settings.
+        heldout: held-out skills of the AdjustedScore (one specialist each).
+        grid, grid_games: box grid values per parameter (``pcg.box_grid``) and games per skill.
+        ppo: ``trainers.ppo_pcgrl.PPOConfig`` overrides on its ``cpu`` preset (both generators).
+        chunk: PPO updates per jitted chunk.
+        episodes: generation episodes per target and generator.
+        gen_games: games per generator measurement during generation.
+        max_edits: edits per generation episode at most.
+        eval_games: games of each tester on every final skill.
+    """
+
+    tester: dict
+    heldout: int
+    grid: int
+    grid_games: int
+    ppo: dict
+    chunk: int
+    episodes: int
+    gen_games: int
+    max_edits: int
+    eval_games: int
+
+
+SCALES = {
+    # Seconds: tiny learners and a few games (used by the tests; its numbers mean nothing).
+    "smoke": Scale(tester=dict(n_arenas=8, n_steps=8, n_minibatches=2, update_epochs=1, hidden=16, heads=1,
+                               updates_per_chunk=1, checkpoint_every=1, total_steps=128),
+                   heldout=2, grid=2, grid_games=4,
+                   ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2, hidden=(16, 16),
+                            n_games=4, max_edits=4),
+                   chunk=1, episodes=1, gen_games=4, max_edits=3, eval_games=8),
+    # About half an hour on 2 CPU cores (docs/RESULTS.md): a 2 M-decision tester and 3 specialists
+    # with the same budget, generators of 2 048 edits at 20 games per measurement, 6 episodes per target.
+    "cpu": Scale(tester=dict(total_steps=2_000_000), heldout=3, grid=3, grid_games=40,
+                 ppo=dict(n_arenas=16, n_steps=8, total_steps=2048, n_games=20), chunk=2,
+                 episodes=6, gen_games=20, max_edits=20, eval_games=100),
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class Team:
+    """The team and the generator's parameters: ``players`` (class presets) and ``parameters``
+    (``raidjax.pcg.space`` names; empty = the paper's four on three mages)."""
+
+    players: tuple[str, ...] = ("mage", "mage", "mage")
+    parameters: tuple[str, ...] = ()
+
+    @property
+    def space(self) -> pcg.Space:
+        return pcg.make_space(self.parameters, self.players)
+
+
+def tester_config(scale: Scale, team: Team) -> Config:
+    """The tester's MA-POCA config (the ``cpu`` preset, the scale's overrides, ``content_box``)."""
+    return PRESETS["cpu"].replace(**scale.tester, content_box=True, eval_games=0, players=team.players,
+                                  parameters=team.parameters)
+
+
+def heldout_skills(n: int, space: pcg.Space, seed: int = 2024) -> np.ndarray:
+    """``n`` points uniform in ``space``'s box from a fixed seed: ``float32[n, K]``."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(space.low, space.high, (n, space.size)).astype(np.float32)
+
+
+@partial(jax.jit, static_argnames=("n_games", "tester", "team"))
+def _win_rates(key, skills, weights, n_games: int, tester, team: Team):
+    game, space = pcg.base_game(team.players), team.space
+
+    def one(k, sk):
+        return jnp.mean(pcg.play_outcomes(k, game, sk, n_games, tester, weights, space).astype(jnp.float32))
+
+    return jax.vmap(one)(jax.random.split(key, skills.shape[0]), skills)
+
+
+def win_rates(key, skills: np.ndarray, n_games: int, team: Team, tester=raidjax.policies.heuristic,
+              weights=None) -> np.ndarray:
+    """Win rates ``float64[k]`` of ``tester`` (with ``weights``) on each generated content
+    ``float32[k, K]`` (``team.space``), ``n_games`` games each, one vmapped program."""
+    return np.asarray(_win_rates(key, jnp.asarray(skills, jnp.float32), weights, n_games, tester, team), float)
+
+
+def stage_tester(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
+    path = rf.path("tester_config.json")
+    atomic_write(path, json.dumps(tester_config(scale, team).to_dict(), indent=1))
+    argv = ["--config", str(path), "--content-box", "--seed", str(seed), "--out", str(rf.out / "tester")]
+    resume = (rf.out / "tester" / "config.json").exists()
+    return mapoca_cli.main(argv + ["--resume"] * resume)
+
+
+def train_specialists(scale: Scale, team: Team, skills: np.ndarray, seed: int, log) -> dict:
+    """One MA-POCA specialist per generated content (``float32[k, K]``), trained together: actor
+    weights with a leading axis ``k``."""
+    cfg = tester_config(scale, team).replace(content_box=False)
+    base, space = pcg.base_game(team.players), team.space
+    trainer = make_trainer(cfg, base_params=base, redraw_ranges=False, fixed_content=True)
+    contents = jax.vmap(lambda sk: space.apply(base, sk))(jnp.asarray(skills))
+    tables = jnp.stack([range_table(cfg.skill_ranges)] * len(skills))  # unused: the content is fixed
+    keys = jax.random.split(jax.random.PRNGKey(seed + 31), len(skills))
+    runner = jax.jit(jax.vmap(trainer.init))(keys, contents, tables)
+    chunk = jax.jit(jax.vmap(trainer.chunk))
+    for c in range(cfg.num_chunks):
+        runner, m = chunk(runner)
+        win = float(np.sum(m["wins"]) / max(np.sum(m["episodes"]), 1))
+        log(f"specialists chunk {c + 1}/{cfg.num_chunks}: training win rate {win:.3f}")
+    return runner.params["actor"]
+
+
+def stage_tester_check(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
+    policy, weights = load_policy(rf.out / "tester", deterministic=False)
+    key = jax.random.PRNGKey(seed + 101)
+    space = team.space
+    grid = pcg.box_grid(scale.grid, space) if space.size <= 4 else pcg.box_probes(space)
+    held = heldout_skills(scale.heldout, space)
+    both = np.concatenate([grid, held])  # one program per tester for the grid and the held-out skills
+    learned, tester_win = np.split(win_rates(key, both, scale.grid_games, team, policy, weights), [len(grid)])
+    scripted, scripted_win = np.split(win_rates(key, both, scale.grid_games, team), [len(grid)])
+    rf.write_csv("tester_grid", [{**dict(zip(space.names, map(float, sk), strict=True)),
+                                  "learned": float(a), "scripted": float(b)}
+                                 for sk, a, b in zip(grid, learned, scripted, strict=True)])
+    spec = train_specialists(scale, team, held, seed, rf.log)
+    game = pcg.base_game(team.players)
+    spec_win = np.asarray(jax.jit(jax.vmap(lambda k, sk, w: jnp.mean(
+        pcg.play_outcomes(k, game, sk, scale.grid_games, policy, w, space).astype(jnp.float32))))(
+        jax.random.split(key, len(held)), jnp.asarray(held), spec), float)
+    rows = [{**dict(zip(space.names, map(float, sk), strict=True)), "tester": float(a), "specialist": float(s),
+             "scripted": float(b), "adjusted": float(a / s) if s > 0 else float("nan")}
+            for sk, a, s, b in zip(held, tester_win, spec_win, scripted_win, strict=True)]
+    rf.write_csv("tester_heldout", rows)
+    adjusted = [r["adjusted"] for r in rows if np.isfinite(r["adjusted"])]
+    return {"grid_learned": float(learned.mean()), "grid_scripted": float(scripted.mean()),
+            "grid_learned_beats_scripted": float(np.mean(learned > scripted)),
+            "adjusted_mean": float(np.mean(adjusted)) if adjusted else None, "adjusted_n": len(adjusted)}
+
+
+def generator_argv(rf: RunFolder, scale: Scale, team: Team, name: str, seed: int) -> list[str]:
+    """``trainers.ppo_pcgrl_cli`` arguments of generator ``name`` (the scale's PPO fields and the
+    team as a JSON ``--config`` file; both generators share it)."""
+    path = rf.path("generator_config.json")
+    config = PPOConfig().replace(**scale.ppo, players=team.players, parameters=team.parameters)
+    atomic_write(path, json.dumps(config.to_dict(), indent=1))
+    argv = ["--preset", "cpu", "--config", str(path), "--chunk", str(scale.chunk), "--seed", str(seed),
+            "--eval-episodes", "0", "--out", str(rf.out / f"generator_{name}")]
+    if name == "learned":
+        argv += ["--tester", str(rf.out / "tester")]
+    return argv + ["--resume"] * (rf.out / f"generator_{name}" / "config.json").exists()
+
+
+def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
+    policy, weights = load_policy(rf.out / "tester", deterministic=False)
+    testers = {"learned": {"tester": policy, "tester_weights": weights}, "scripted": {}}
+    out = {k: [] for k in ("generator", "target", "skill", "gen_win_rate", "edits", "reached", "learned", "scripted")}
+    for g, name in enumerate(GENERATORS):
+        ckpt = rf.out / f"generator_{name}" / "checkpoints"
+        w, config = checkpoint.load_policy_weights(ckpt / str(checkpoint.latest_step(ckpt)))  # the final one
+        config = PPOConfig.from_dict(config)
+        _, labels = target_groups(config, jax.tree.leaves(w)[0].shape[0])
+        gens = evaluate(jax.random.PRNGKey(seed + 200 + g), config, w, labels, gen_games=scale.gen_games,
+                        greedy=False, episodes=scale.episodes, eval_games=0, baselines=False,
+                        max_edits=scale.max_edits, **testers[name])["PPO"]
+        n = len(gens["target"])
+        out["generator"].append(np.full(n, g))
+        for k in ("target", "skill", "gen_win_rate", "edits", "reached"):
+            out[k].append(gens[k])
+    data = {k: np.concatenate(v) for k, v in out.items() if v}
+    for t, kw in testers.items():  # both testers play every final skill, with the same keys
+        data[t] = win_rates(jax.random.PRNGKey(seed + 300), data["skill"], scale.eval_games, team,
+                            kw.get("tester", raidjax.policies.heuristic), kw.get("tester_weights"))
+    buf = io.BytesIO()
+    np.savez(buf, generators=np.asarray(GENERATORS), parameters=np.asarray(team.space.names), **data)
+    atomic_write(rf.out / "generated.npz", buf.getvalue())
+    rf.write_csv("generated", [{"generator": GENERATORS[int(data["generator"][i])], "target": float(data["target"][i]),
+                                **{p: float(v) for p, v in zip(team.space.names, data["skill"][i], strict=True)},
+                                "gen_win_rate": float(data["gen_win_rate"][i]), "edits": int(data["edits"][i]),
+                                "learned": float(data["learned"][i]), "scripted": float(data["scripted"][i])}
+                               for i in range(len(data["target"]))])
+    return {"skills": int(len(data["target"]))}
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(prog="python -m experiments.balance", formatter_class=HelpFormatter,
+                                 description="The integrated balancing loop: a learned playtester inside the "
+                                 "skill generator, against the scripted PT-HR (GAME.md §13).")
+    ap.add_argument("--scale", choices=sorted(SCALES), default="smoke", help="budgets (smoke: seconds; cpu: ~30 min)")
+    ap.add_argument("--out", required=True, help="run folder (new, or holding this run with --resume)")
+    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
+    ap.add_argument("--players", nargs="+", default=["mage"] * 3,
+                    help="the team's class presets, e.g. warrior mage priest (default: three mages)")
+    ap.add_argument("--parameters", nargs="+", default=[],
+                    help="the generator's parameters (raidjax.pcg.space names, e.g. mage.skill1.range=1:20 "
+                    "boss.max_hp=500:3000; default: the paper's four, which need three mages)")
+    ap.add_argument("--resume", action="store_true", help="continue the run in --out (same settings)")
+    args = ap.parse_args(argv)
+    scale = SCALES[args.scale]
+    team = Team(tuple(args.players), tuple(args.parameters))
+    tester_config(scale, team)  # a bad team or parameter fails here, before anything is written
+    rf = RunFolder(args.out, {"experiment": "balance", "scale": args.scale, "seed": args.seed,
+                              "players": list(team.players), "parameters": list(team.parameters),
+                              "budgets": dataclasses.asdict(scale)}, resume=args.resume)
+    if rf.finished:
+        return rf.already_finished()
+    from experiments import balance_report  # matplotlib only for the report
+
+    tester = rf.stage("tester", lambda: stage_tester(rf, scale, team, args.seed))
+    check = rf.stage("tester_check", lambda: stage_tester_check(rf, scale, team, args.seed))
+    for name in GENERATORS:
+        rf.stage(f"generator_{name}",
+                 lambda name=name: ppo_pcgrl_cli.main(generator_argv(rf, scale, team, name, args.seed)))
+    rf.stage("generate", lambda: stage_generate(rf, scale, team, args.seed))
+    report = rf.stage("report", lambda: balance_report.report(rf))
+    rf.log(f"done in {fmt_seconds(sum(rf.stage_seconds().values()))}")
+    return rf.finish({"scale": args.scale, "tester_decisions": tester["env_steps"], **check, **report})
+
+
+def cli(argv=None) -> None:
+    """``main`` as a command line: one-line errors (exit 2), one line on Ctrl-C (exit 130)."""
+    run_cli(lambda: main(argv), (ValueError, checkpoint.CheckpointError),
+            "finished stages and the newest checkpoints are kept: rerun the same command with --resume")
+
+
+if __name__ == "__main__":
+    raidjax.use_recommended_xla_flags()
+    cli()

@@ -61,9 +61,20 @@ def win_rate_table(rf: RunFolder, cells: list[dict]) -> dict:
                              "paper": PAPER_WIN_RATE[agent][j]})
             means[f"{agent}@{r:g}"] = float(x.mean())
         rows.append(row)
+    for agent in ("PT-RD", "PT-HR", "MA-POCA"):  # raidjax's mixed team (warrior, mage, priest); not in the paper
+        x = [_rates(cells, agent, "mixed", r) for r in TABLE_RANGES]
+        if not any(v.size for v in x):
+            continue
+        rows.append([f"{agent}, mixed team"] + [_ms(v) for v in x])
+        for r, v in zip(TABLE_RANGES, x, strict=True):
+            csv_rows.append({"agent": f"{agent}, mixed team", "range": r, "mean": float(v.mean()),
+                             "sd": float(v.std()), "n": v.size, "paper": float("nan")})
+            means[f"{agent}@{r:g}/mixed"] = float(v.mean())
     n_games = cells[0]["games"]
     md = ("## Win rate by skill range (reference content)\n\n"
-          f"Mean ± SD over seeds of the win rate in {n_games} games per seed; the paper's value in brackets.\n\n"
+          f"Mean ± SD over seeds of the win rate in {n_games} games per seed; the paper's value in brackets. "
+          "The mixed-team rows (not in the paper) play a warrior, a mage and a priest from the catalogue, "
+          "every player's skill slot 1 at the range.\n\n"
           + markdown_table(["agent"] + [f"range {r:g}" for r in TABLE_RANGES], rows))
     rf.write_table("win_rate", md)
     rf.write_csv("win_rate_table", csv_rows)
@@ -212,8 +223,8 @@ def training_figure(rf: RunFolder) -> None:
         return
     x = np.asarray([float(r["env_steps"]) for r in rows]) / 1e6
     runs = sorted({k.split("/", 1)[1].rsplit("/", 1)[0] for k in rows[0] if k.startswith("win/")})
-    groups = ("table", "robust", "population")
-    fig, axes = plt.subplots(1, 3, figsize=(10, 2.8), sharey=True)
+    groups = [g for g in ("table", "robust", "population", "mixed") if any(r.startswith(g + "/") for r in runs)]
+    fig, axes = plt.subplots(1, len(groups), figsize=(3.4 * len(groups), 2.8), sharey=True)
     for ax, g in zip(axes, groups, strict=True):
         for run in (r for r in runs if r.startswith(g + "/")):
             cols = [k for k in rows[0] if k.startswith(f"win/{run}/")]

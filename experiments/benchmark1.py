@@ -53,6 +53,7 @@ ROBUST_SETS = {"MA-POCA1": (5.0,), "MA-POCA2": (5.0, 9.0), "MA-POCA3": (5.0, 9.0
 TEST_RANGES = (3.0, 4.0, 19.0, 20.0)
 TEST_COOL_TIME = 1.0  # test/skill_easy.json, skill_hard.json
 TRAIN_COOL_TIME = 0.5  # train/skill*_config.json, population/*.json (= the reference content)
+MIXED_TEAM = ("warrior", "mage", "priest")  # raidjax's mixed-team row (not in the paper)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,8 +110,11 @@ def config_of(scale: Scale, protocol: str = "paper") -> Config:
 
 
 def content_of(kind: str, skill_range: float = 5.0) -> raidjax.Params:
-    """``"reference"`` (players' cool time 0.5, the training content of the reference configs) or
-    ``"test"`` (cool time 1.0) content at the given range."""
+    """``"reference"`` (players' cool time 0.5, the training content of the reference configs),
+    ``"test"`` (cool time 1.0) or ``"mixed"`` (``MIXED_TEAM`` with the catalogue's skills) content
+    with every player's skill slot 1 at the given range."""
+    if kind == "mixed":  # same shapes as the mages' content, so its runs join the one vmapped program
+        return raidjax.make_params(players=list(MIXED_TEAM), skill_range=skill_range)
     cool = {"reference": TRAIN_COOL_TIME, "test": TEST_COOL_TIME}[kind]
     return raidjax.with_player_skill(raidjax.make_params(skill_range=skill_range), cool_time=cool)
 
@@ -132,6 +136,8 @@ def runs_of(scale: Scale, protocol: str = "paper") -> list[dict]:
              for k, v in ROBUST_SETS.items() for s in range(scale.seeds)]
     runs += [dict(name=f"population/r{r:g}", group="population", ranges=(r,), content=kind, seed=s)
              for r in TEST_RANGES for s in range(scale.population)]
+    runs += [dict(name=f"mixed/r{r:g}", group="mixed", ranges=(r,), content="mixed", seed=s)
+             for r in TABLE_RANGES for s in range(scale.seeds)]
     return runs
 
 
@@ -246,7 +252,8 @@ def eval_cells(runs: list[dict]) -> list[tuple[int, str, float, int]]:
         if r["group"] == "robust":
             cells += [(i, "test", t, r["seed"]) for t in TEST_RANGES]
         else:
-            cells.append((i, "reference" if r["group"] == "table" else "test", r["ranges"][0], r["seed"]))
+            kind = {"table": "reference", "mixed": "mixed"}.get(r["group"], "test")
+            cells.append((i, kind, r["ranges"][0], r["seed"]))
     return cells
 
 
@@ -266,7 +273,8 @@ def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> d
             for (i, kind, rg, s), o in zip(cells, out, strict=True)]
     # scripted agents: every (content, range) cell x `seeds` independent batches of games, one
     # playtest per policy with one content per group of games
-    contents_ranges = [("reference", r) for r in TABLE_RANGES] + [("test", r) for r in TEST_RANGES]
+    contents_ranges = ([("reference", r) for r in TABLE_RANGES] + [("test", r) for r in TEST_RANGES]
+                       + [("mixed", r) for r in TABLE_RANGES])
     pt_cells = [(kind, rg, sd) for kind, rg in contents_ranges for sd in range(scale.seeds)]
     pt_contents = _stack([content_of(kind, rg) for kind, rg, _ in pt_cells])
     for name, pol in (("PT-HR", raidjax.policies.heuristic), ("PT-RD", raidjax.policies.random)):

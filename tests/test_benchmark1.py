@@ -60,10 +60,15 @@ def test_tables_recompute_from_raw_cells(run):
     cells = _rows(out / "csv" / "win_rates.csv")
     n_runs = len(benchmark1.runs_of(benchmark1.SCALES["smoke"]))
     assert len([c for c in cells if c["group"] != "scripted"]) == n_runs + 3 * 4  # robust runs: 4 test ranges
-    for row in _rows(out / "csv" / "win_rate_table.csv"):
-        own = [float(c["win_rate"]) for c in cells if c["agent"] == row["agent"] and c["content"] == "reference"
+    table = _rows(out / "csv" / "win_rate_table.csv")
+    assert {r["agent"] for r in table} == {"PT-RD", "PT-HR", "MA-POCA", "PT-RD, mixed team", "PT-HR, mixed team",
+                                           "MA-POCA, mixed team"}
+    for row in table:
+        agent, _, team = row["agent"].partition(", ")
+        content = "mixed" if team else "reference"
+        own = [float(c["win_rate"]) for c in cells if c["agent"] == agent and c["content"] == content
                and float(c["range"]) == float(row["range"]) and c["group"] != "population"]
-        assert float(row["mean"]) == pytest.approx(np.mean(own))
+        assert len(own) >= 1 and float(row["mean"]) == pytest.approx(np.mean(own))
     for row in _rows(out / "csv" / "robustness.csv"):
         pop = np.mean([float(c["win_rate"]) for c in cells
                        if c["group"] == "population" and float(c["range"]) == float(row["range"])])

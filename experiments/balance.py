@@ -80,7 +80,7 @@ class Scale:
 
 
 SCALES = {
-    # Seconds: tiny learners and a few games (used by the tests; its numbers mean nothing).
+    # A few minutes of compiling: tiny learners and a few games (used by the tests; its numbers mean nothing).
     "smoke": Scale(tester=dict(n_arenas=8, n_steps=8, n_minibatches=2, update_epochs=1, hidden=16, heads=1,
                                updates_per_chunk=1, checkpoint_every=1, total_steps=128),
                    heldout=2, grid=2, grid_games=4,
@@ -238,8 +238,9 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(prog="python -m experiments.balance", formatter_class=HelpFormatter,
                                  description="The integrated balancing loop: a learned playtester inside the "
                                  "skill generator, against the scripted PT-HR (GAME.md §13).")
-    ap.add_argument("--scale", choices=sorted(SCALES), default="smoke", help="budgets (smoke: seconds; cpu: ~30 min)")
-    ap.add_argument("--out", required=True, help="run folder (new, or holding this run with --resume)")
+    ap.add_argument("--scale", choices=sorted(SCALES), default="smoke",
+                    help="budgets (smoke: a few minutes, for the plumbing; cpu: about half an hour on 2 cores)")
+    ap.add_argument("--out", required=True, help="run folder, new or holding this run with --resume (required)")
     ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
     ap.add_argument("--players", nargs="+", default=["mage"] * 3,
                     help="the team's class presets, e.g. warrior mage priest (default: three mages)")

@@ -26,6 +26,7 @@ COMMANDS = (
     ("train ppo-pcgrl", "trainers.ppo_pcgrl_cli", "train", "train the PPO-PCGRL content generator"),
     ("benchmark 1", "experiments.benchmark1", "experiments", "Benchmark 1 (playtesting agents), end to end"),
     ("benchmark 2", "experiments.benchmark2", "experiments", "Benchmark 2 (content generation), end to end"),
+    ("balance", "experiments.balance", "experiments", "the balancing loop: a learned playtester inside the generator"),
     ("plot", "trainers.plot", "experiments", "learning curves of MA-POCA runs from their metrics.csv"),
 )
 GROUPS = {"train": "trainer", "benchmark": "benchmark"}  # two-word commands: what their second word names

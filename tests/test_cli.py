@@ -57,7 +57,7 @@ MISTAKES = [
      "error: runs: value '{tmp}/ppo_run' has a metrics.csv without the column 'env_steps' (not a MA-POCA run?)"),
     ("raidjax-unknown-command", "experiments.cli", ["trian", "mapoca"],
      "error: raidjax: value 'trian' is not a command; allowed: a command (calibrate, render, train mapoca, "
-     "train ppo-pcgrl, benchmark 1, benchmark 2, plot), --help or --version"),
+     "train ppo-pcgrl, benchmark 1, benchmark 2, balance, plot), --help or --version"),
     ("raidjax-unknown-trainer", "experiments.cli", ["train", "ppo"],
      "error: raidjax train: value 'ppo' is not a trainer; allowed: mapoca, ppo-pcgrl"),
     ("raidjax-forwards-mistakes", "experiments.cli", ["render", "--out", "{tmp}"],
@@ -100,7 +100,8 @@ def test_raidjax_console_command_lists_and_dispatches(tmp_path):
     p = _run(["experiments.cli", "--help"], tmp_path)
     assert p.returncode == 0 and p.stderr == ""
     listed = re.findall(r"^  (\S+(?: [\w-]+)?)  +\S", p.stdout, re.M)
-    assert listed == ["calibrate", "render", "train mapoca", "train ppo-pcgrl", "benchmark 1", "benchmark 2", "plot"]
+    assert listed == ["calibrate", "render", "train mapoca", "train ppo-pcgrl", "benchmark 1", "benchmark 2", "balance",
+                      "plot"]
     p = _run(["experiments.cli"], tmp_path)  # no command: the help on stderr, exit 2
     assert p.returncode == 2 and p.stdout == "" and p.stderr.startswith("usage: raidjax COMMAND")
     p = _run(["experiments.cli", "train", "mapoca", "--help"], tmp_path)  # forwarded to trainers.mapoca_cli
@@ -128,7 +129,7 @@ def _options(help_text: str) -> dict[str, str]:
 
 
 @pytest.mark.parametrize("command", ["calibrate", "render", "train mapoca", "train ppo-pcgrl", "benchmark 1",
-                                     "benchmark 2", "plot"])
+                                     "benchmark 2", "balance", "plot"])
 def test_every_help_shows_the_defaults(command, capsys):
     """In-process (the same parsers as ``python -m``): every option that takes a value says its
     default, or that it is required; flags (``--resume``) have none."""
@@ -146,7 +147,7 @@ def test_every_help_shows_the_defaults(command, capsys):
             assert "default" in block or "(required)" in block, f"{command}: {block}"
     expected = {"calibrate": "(default: 2000)", "render": "(default: 600)", "train mapoca": "(default: cpu)",
                 "train ppo-pcgrl": "(default: 300)", "benchmark 1": "(default: smoke)", "benchmark 2": "(default: cpu)",
-                "plot": "(required)"}
+                "balance": "(default: smoke)", "plot": "(required)"}
     assert expected[command] in text
 
 

@@ -43,11 +43,12 @@ class Config:
             skill slot 1 range, cool time, cast time and coefficient) uniformly within their
             bounds, on the generator's base content (``raidjax.pcg.base_game(players)``), at the
             ``redraw_every`` cadence; ``skill_ranges`` is then unused. The observation carries
-            every unit's skills (range, damage, cast time; cool time through the recharge timer)
-            and stats, so one network can play every content the generator makes.
+            the players' skills (range, damage, cast time; cool time through the recharge timer),
+            so one network can play every skill the generator makes; stats only show through
+            their effects (HP fractions).
         players: the team's class presets (``raidjax.catalogue.CLASSES``), e.g. a mixed team
             ``("warrior", "mage", "priest")``; one network plays every member, which tells the
-            classes apart by their observed skills and stats.
+            classes apart by their observed skills.
         parameters: the box of ``content_box`` (``raidjax.pcg.space`` names; empty = the paper's
             four, which need three mages).
         redraw_every: an arena draws a new range at its start and then after every

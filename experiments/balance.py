@@ -81,10 +81,10 @@ class Scale:
 
 SCALES = {
     # A few minutes of compiling: tiny learners and a few games (used by the tests; its numbers mean nothing).
-    "smoke": Scale(tester=dict(n_arenas=8, n_steps=8, n_minibatches=2, update_epochs=1, hidden=16, heads=1,
+    "smoke": Scale(tester=dict(n_arenas=8, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1, heads=1,
                                updates_per_chunk=1, checkpoint_every=1, total_steps=128),
-                   heldout=2, grid=2, grid_games=4,
-                   ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2, hidden=(16, 16),
+                   heldout=1, grid=2, grid_games=4,
+                   ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2, hidden=(8,),
                             n_games=4, max_edits=4),
                    chunk=1, episodes=1, gen_games=4, max_edits=3, eval_games=8),
     # About half an hour on 2 CPU cores (docs/RESULTS.md): a 2 M-decision tester and 3 specialists

@@ -1,7 +1,7 @@
 """Automated content balancing end to end (GAME.md §13): a skill generator whose playtests are
 played by a robust learned team, compared with one trained against the paper's scripted PT-HR.
 
-    python -m experiments.balance --scale {smoke,cpu} --out DIR [--seed N] [--resume]
+    python -m experiments.balance --scale {smoke,cpu,paper} --out DIR [--seed N] [--resume]
 
 The question it answers: does content balanced with a scripted tester stay balanced for skilled
 play? Stages (``trainers.runfolder``; rerun with ``--resume`` to continue; the three trainers
@@ -44,6 +44,7 @@ from trainers import checkpoint, mapoca_cli, ppo_pcgrl_cli
 from trainers.config import PRESETS, Config
 from trainers.generate import evaluate, target_groups
 from trainers.mapoca import load_policy, make_trainer, range_table
+from trainers.ppo_pcgrl import PRESETS as PPO_PRESETS
 from trainers.ppo_pcgrl import PPOConfig
 from trainers.runfolder import RunFolder
 
@@ -55,16 +56,18 @@ class Scale:
     """Budgets of one scale.
 
     Attributes:
-        tester: ``trainers.config.Config`` overrides on the MA-POCA ``cpu`` preset (``content_box``
-            is always on); the specialists of the AdjustedScore train with the same settings.
+        tester: ``trainers.config.Config`` overrides on the MA-POCA ``preset`` (``content_box`` is
+            always on); the specialists of the AdjustedScore train with the same settings.
         heldout: held-out skills of the AdjustedScore (one specialist each).
         grid, grid_games: box grid values per parameter (``pcg.box_grid``) and games per skill.
-        ppo: ``trainers.ppo_pcgrl.PPOConfig`` overrides on its ``cpu`` preset (both generators).
+        ppo: ``trainers.ppo_pcgrl.PPOConfig`` overrides on its ``preset`` (both generators).
         chunk: PPO updates per jitted chunk.
         episodes: generation episodes per target and generator.
         gen_games: games per generator measurement during generation.
         max_edits: edits per generation episode at most.
         eval_games: games of each tester on every final skill.
+        preset: the trainers' preset (``cpu`` or ``paper``, in ``trainers.config.PRESETS`` and
+            ``trainers.ppo_pcgrl.PRESETS``).
     """
 
     tester: dict
@@ -77,6 +80,7 @@ class Scale:
     gen_games: int
     max_edits: int
     eval_games: int
+    preset: str = "cpu"
 
 
 SCALES = {
@@ -92,6 +96,11 @@ SCALES = {
     "cpu": Scale(tester=dict(total_steps=2_000_000), heldout=3, grid=3, grid_games=40,
                  ppo=dict(n_arenas=16, n_steps=8, total_steps=2048, n_games=20), chunk=2,
                  episodes=6, gen_games=20, max_edits=20, eval_games=100),
+    # The paper's budgets, for an accelerator (not run here): the MA-POCA paper preset (16.7 M
+    # decisions) for the tester and 5 specialists, the PPO paper preset (one model per target,
+    # 20 000 edits, 100 games per measurement), 100 episodes per target, 300-game cross-play.
+    "paper": Scale(tester={}, heldout=5, grid=5, grid_games=100, ppo={}, chunk=2, episodes=100, gen_games=100,
+                   max_edits=40, eval_games=300, preset="paper"),
 }
 
 
@@ -109,8 +118,8 @@ class Team:
 
 
 def tester_config(scale: Scale, team: Team) -> Config:
-    """The tester's MA-POCA config (the ``cpu`` preset, the scale's overrides, ``content_box``)."""
-    return PRESETS["cpu"].replace(**scale.tester, content_box=True, eval_games=0, players=team.players,
+    """The tester's MA-POCA config (the scale's preset and overrides, ``content_box``)."""
+    return PRESETS[scale.preset].replace(**scale.tester, content_box=True, eval_games=0, players=team.players,
                                   parameters=team.parameters)
 
 
@@ -194,9 +203,9 @@ def generator_argv(rf: RunFolder, scale: Scale, team: Team, name: str, seed: int
     """``trainers.ppo_pcgrl_cli`` arguments of generator ``name`` (the scale's PPO fields and the
     team as a JSON ``--config`` file; both generators share it)."""
     path = rf.path("generator_config.json")
-    config = PPOConfig().replace(**scale.ppo, players=team.players, parameters=team.parameters)
+    config = PPO_PRESETS[scale.preset].replace(**scale.ppo, players=team.players, parameters=team.parameters)
     atomic_write(path, json.dumps(config.to_dict(), indent=1))
-    argv = ["--preset", "cpu", "--config", str(path), "--chunk", str(scale.chunk), "--seed", str(seed),
+    argv = ["--preset", scale.preset, "--config", str(path), "--chunk", str(scale.chunk), "--seed", str(seed),
             "--eval-episodes", "0", "--out", str(rf.out / f"generator_{name}")]
     if name == "learned":
         argv += ["--tester", str(rf.out / "tester")]
@@ -239,7 +248,8 @@ def main(argv=None) -> dict:
                                  description="The integrated balancing loop: a learned playtester inside the "
                                  "skill generator, against the scripted PT-HR (GAME.md §13).")
     ap.add_argument("--scale", choices=sorted(SCALES), default="smoke",
-                    help="budgets (smoke: a few minutes, for the plumbing; cpu: about half an hour on 2 cores)")
+                    help="budgets (smoke: a few minutes, for the plumbing; cpu: about 40 min on 2 cores; "
+                    "paper: the paper's budgets, for an accelerator)")
     ap.add_argument("--out", required=True, help="run folder, new or holding this run with --resume (required)")
     ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
     ap.add_argument("--players", nargs="+", default=["mage"] * 3,

@@ -178,3 +178,13 @@ def test_generator_cli_refuses_a_bad_config_file_and_a_missing_tester(tmp_path):
     with pytest.raises(checkpoint.CheckpointError, match="does not exist"):
         ppo_pcgrl_cli.main(["--tester", str(tmp_path / "none"), "--out", str(tmp_path / "b")])
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_the_paper_scale_uses_both_trainers_paper_presets():
+    from trainers.config import PRESETS
+
+    s = balance.SCALES["paper"]
+    cfg = balance.tester_config(s, balance.Team())
+    assert cfg.content_box and cfg.replace(content_box=False, eval_games=PRESETS["paper"].eval_games) == PRESETS["paper"]
+    assert s.preset == "paper" and s.ppo == {} and s.eval_games == 300
+    assert [balance.SCALES[k].preset for k in ("smoke", "cpu")] == ["cpu", "cpu"]

@@ -15,13 +15,14 @@ their target under that tester (``raidjax.pcg.metrics.diversity``).
 
 from __future__ import annotations
 
+import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
 from raidjax.pcg import metrics as pm
+from raidjax.utils import HelpFormatter, run_cli
 from trainers.runfolder import RunFolder, markdown_table
 
 TESTERS = ("learned", "scripted")
@@ -127,12 +128,19 @@ def figures(rf: RunFolder, gap_rows: list[dict]) -> None:
 
 
 def main(argv=None) -> dict:
-    """Rewrite the report of an existing run folder."""
-    argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 1 or not (Path(argv[0]) / "generated.npz").exists():
-        raise SystemExit("usage: python -m experiments.balance_report DIR (a balance run folder with generated.npz)")
-    return report(RunFolder(argv[0], json.loads((Path(argv[0]) / "config.json").read_text()), resume=True))
+    """Rewrite the tables and figures of an existing balance run folder from its raw outputs."""
+    ap = argparse.ArgumentParser(prog="python -m experiments.balance_report", formatter_class=HelpFormatter,
+                                 description="Redraw a balance run's tables and figures from its generated.npz.")
+    ap.add_argument("run", help="a balance run folder holding config.json and generated.npz (required)")
+    args = ap.parse_args(argv)
+    run = Path(args.run)
+    if not (run / "generated.npz").is_file() or not (run / "config.json").is_file():
+        raise ValueError(f"run: value {str(run)!r} holds no config.json and generated.npz; allowed: a balance run "
+                         "folder past its generate stage")
+    summary = report(RunFolder(run, json.loads((run / "config.json").read_text()), resume=True))
+    print(json.dumps(summary))
+    return summary
 
 
 if __name__ == "__main__":
-    print(main())
+    run_cli(main, (ValueError,), "")

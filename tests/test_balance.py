@@ -185,6 +185,7 @@ def test_the_paper_scale_uses_both_trainers_paper_presets():
 
     s = balance.SCALES["paper"]
     cfg = balance.tester_config(s, balance.Team())
-    assert cfg.content_box and cfg.replace(content_box=False, eval_games=PRESETS["paper"].eval_games) == PRESETS["paper"]
+    assert cfg.content_box
+    assert cfg.replace(content_box=False, eval_games=PRESETS["paper"].eval_games) == PRESETS["paper"]
     assert s.preset == "paper" and s.ppo == {} and s.eval_games == 300
     assert [balance.SCALES[k].preset for k in ("smoke", "cpu")] == ["cpu", "cpu"]

@@ -231,6 +231,18 @@ PRESETS: dict[str, Config] = {
 }
 
 
+def read_fields(path: str | Path, kind: str) -> dict:
+    """The JSON object in the file ``path`` (a dict of ``kind`` fields, unchecked); raises
+    ``ValueError`` naming the file and what is wrong when it is unreadable or not an object."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise ValueError(f"config: cannot read {path} as a JSON object of {kind} fields ({e})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"config: {path} holds a {type(data).__name__}; allowed: a JSON object of {kind} fields")
+    return data
+
+
 def load_config(preset: str = "cpu", path: str | Path | None = None, **overrides) -> Config:
     """Preset, then the JSON file at ``path`` (a dict of fields), then ``overrides`` (None skipped).
 
@@ -241,11 +253,6 @@ def load_config(preset: str = "cpu", path: str | Path | None = None, **overrides
         raise ValueError(f"preset: unknown {preset!r}; known: {sorted(PRESETS)}")
     cfg = PRESETS[preset]
     if path is not None:
-        try:
-            data = json.loads(Path(path).read_text())
-        except (OSError, json.JSONDecodeError) as e:
-            raise ValueError(f"config: cannot read {path} as a JSON object of Config fields ({e})") from None
-        if not isinstance(data, dict):
-            raise ValueError(f"config: {path} holds a {type(data).__name__}; allowed: a JSON object of Config fields")
+        data = read_fields(path, "Config")
         cfg = cfg.replace(**Config.from_dict({**cfg.to_dict(), **data}).to_dict())
     return cfg.replace(**{k: v for k, v in overrides.items() if v is not None})

@@ -28,6 +28,7 @@ from raidjax import pcg
 from raidjax.sharding import put_batch
 from raidjax.utils import HelpFormatter, atomic_write, finite_json, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
+from trainers.config import read_fields
 from trainers.generate import evaluate, target_groups
 from trainers.mapoca import load_policy
 from trainers.metrics import MetricsLog, update_rows
@@ -88,12 +89,7 @@ def load_fields(path: str | None) -> dict:
     naming the file and what is wrong, or the unknown keys."""
     if path is None:
         return {}
-    try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as e:
-        raise ValueError(f"--config: cannot read {path} as a JSON object of PPOConfig fields ({e})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"--config: {path} holds a {type(data).__name__}; allowed: a JSON object of PPOConfig fields")
+    data = read_fields(path, "PPOConfig")
     PPOConfig.from_dict(data)  # unknown keys and bad values fail here, naming the field
     return {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
 

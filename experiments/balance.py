@@ -220,7 +220,8 @@ def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
         ckpt = rf.out / f"generator_{name}" / "checkpoints"
         w, config = checkpoint.load_policy_weights(ckpt / str(checkpoint.latest_step(ckpt)))  # the final one
         config = PPOConfig.from_dict(config)
-        _, labels = target_groups(config, jax.tree.leaves(w)[0].shape[0])
+        groups = jax.tree.leaves(w)[0].shape[0]  # seeds, or seeds x targets when the target is not observed
+        _, labels = target_groups(config, groups if config.observe_target else groups // len(pcg.metrics.TARGETS))
         gens = evaluate(jax.random.PRNGKey(seed + 200 + g), config, w, labels, gen_games=scale.gen_games,
                         greedy=False, episodes=scale.episodes, eval_games=0, baselines=False,
                         max_edits=scale.max_edits, **testers[name])["PPO"]

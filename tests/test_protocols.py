@@ -87,16 +87,18 @@ def test_benchmark1_trains_at_cool_time_and_tests_at_one(protocol, train_cool, e
     runs = b1.runs_of(scale, protocol)
     _, contents, _ = b1._run_inputs(runs, 0)
     cool = np.asarray(contents.skills.cool_time)[:, :3, 0]  # [run, player] skill slot 1
+    # the mixed-team row is not in the paper: it keeps each class's catalogue skill at any protocol
+    catalogue = [raidjax.make_params(players=[p]).skills.cool_time[0, 0] for p in b1.MIXED_TEAM]
     for r, c in zip(runs, cool, strict=True):
-        want = 0.5 if r["group"] == "table" else train_cool
+        want = {"table": 0.5, "mixed": catalogue}.get(r["group"], train_cool)
         np.testing.assert_allclose(c, want, err_msg=r["name"])
     assert b1.config_of(scale, protocol).redraw_every == every
     for i, kind, rng, _ in b1.eval_cells(runs):
         group = runs[i]["group"]
-        assert kind == ("reference" if group == "table" else "test")
-        assert (rng in b1.TEST_RANGES) == (group != "table")
+        assert kind == {"table": "reference", "mixed": "mixed"}.get(group, "test")
+        assert (rng in b1.TEST_RANGES) == (group not in ("table", "mixed"))
         c = np.asarray(b1.content_of(kind, rng).skills.cool_time)[:3, 0]
-        np.testing.assert_allclose(c, 0.5 if group == "table" else 1.0)
+        np.testing.assert_allclose(c, {"table": 0.5, "mixed": catalogue}.get(group, 1.0))
 
 
 # --- Benchmark 2: equal groups --------------------------------------------------------------

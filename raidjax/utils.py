@@ -188,6 +188,34 @@ def check_output_file(flag: str, path: str | Path, suffixes: tuple[str, ...] = (
     raise ValueError(f"{flag}: value {text!r} {wrong}; allowed: {allowed}")
 
 
+def _exit_on_ctrl_c(line: str) -> None:
+    """From now on, SIGINT prints ``line`` to stderr and exits 130 at once, whatever the main thread
+    is doing. A KeyboardInterrupt would not do: it waits until an XLA compile (tens of seconds)
+    returns, and when it is raised inside jax's garbage-collection callback Python reports it as
+    "Exception ignored" and carries on, so the user's Ctrl-C is lost. Instead the signal's wakeup
+    fd is read by a watcher thread, which exits the process."""
+    import signal
+    import sys
+    import threading
+
+    read_end, write_end = os.pipe()
+    os.set_blocking(write_end, False)
+    signal.signal(signal.SIGINT, lambda *_: None)  # the watcher acts; the main thread must not raise
+    signal.set_wakeup_fd(write_end, warn_on_full_buffer=False)
+
+    def watch():
+        while True:
+            if signal.SIGINT in os.read(read_end, 64):
+                sys.stdout.flush()
+                print(line, file=sys.stderr, flush=True)
+                # Straight out: a normal interpreter exit can crash (SIGSEGV) while XLA threads are
+                # still compiling or running; every user file is written atomically, so nothing
+                # is half-written.
+                os._exit(130)
+
+    threading.Thread(target=watch, name="raidjax-ctrl-c", daemon=True).start()
+
+
 def run_cli(main, errors: tuple[type[BaseException], ...] = (ValueError,), interrupted: str = "") -> None:
     """Run a command line's ``main()`` the way users expect: a user's mistake (``errors``) prints
     ``error: <message>`` on one line and exits 2; Ctrl-C prints one line (with ``interrupted``, e.g.
@@ -198,6 +226,8 @@ def run_cli(main, errors: tuple[type[BaseException], ...] = (ValueError,), inter
     from raidjax.xla_flags import use_recommended_xla_flags
 
     use_recommended_xla_flags()
+    if not os.environ.get("RAIDJAX_DEBUG"):
+        _exit_on_ctrl_c(f"interrupted{'; ' + interrupted if interrupted else ''}")
     try:
         main()
     except errors as e:

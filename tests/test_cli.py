@@ -178,7 +178,9 @@ def test_documented_raidjax_commands_exist_with_their_flags(command, capsys):
 
 
 def test_ctrl_c_is_one_line_saying_how_to_resume(tmp_path):
-    """SIGINT while a trainer starts up: no traceback, exit 130, one line naming --resume."""
+    """SIGINT while a trainer compiles: no traceback, exit 130 within seconds (not after the compile,
+    and not lost: raised as KeyboardInterrupt inside jax's gc callback it used to be ignored), one
+    line naming --resume."""
     import signal
     import time
 
@@ -186,10 +188,16 @@ def test_ctrl_c_is_one_line_saying_how_to_resume(tmp_path):
     env.pop("RAIDJAX_DEBUG", None)
     proc = subprocess.Popen([sys.executable, "-m", "trainers.mapoca_cli", "--out", str(tmp_path / "run")], cwd=tmp_path,
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(6)  # past the imports, inside the run
+    started = time.monotonic()
+    while not (tmp_path / "run" / "config.json").exists():  # written when the run starts, before compiling
+        assert proc.poll() is None and time.monotonic() - started < 120, proc.communicate()[1][-2000:]
+        time.sleep(0.05)
+    time.sleep(0.5)  # into the trainer's set-up and compile (about 30 s here)
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
+    sent = time.monotonic()
+    _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err[-2000:]
+    assert time.monotonic() - sent < 15, "the interrupt waited for the compile"
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted") and "--resume" in err
 
 

@@ -90,7 +90,7 @@ SCALES = {
                    heldout=1, grid=2, grid_games=4,
                    ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2, hidden=(8,),
                             n_games=4, max_edits=4),
-                   chunk=1, episodes=1, gen_games=4, max_edits=3, eval_games=8),
+                   chunk=1, episodes=1, gen_games=4, max_edits=3, eval_games=4),
     # About half an hour on 2 CPU cores (docs/RESULTS.md): a 2 M-decision tester and 3 specialists
     # with the same budget, generators of 2 048 edits at 20 games per measurement, 6 episodes per target.
     "cpu": Scale(tester=dict(total_steps=2_000_000), heldout=3, grid=3, grid_games=40,
@@ -129,21 +129,34 @@ def heldout_skills(n: int, space: pcg.Space, seed: int = 2024) -> np.ndarray:
     return rng.uniform(space.low, space.high, (n, space.size)).astype(np.float32)
 
 
+PAD = 32
+
+
 @partial(jax.jit, static_argnames=("n_games", "tester", "team"))
-def _win_rates(key, skills, weights, n_games: int, tester, team: Team):
+def _win_rates(keys, skills, weights, n_games: int, tester, team: Team):
     game, space = pcg.base_game(team.players), team.space
 
     def one(k, sk):
         return jnp.mean(pcg.play_outcomes(k, game, sk, n_games, tester, weights, space).astype(jnp.float32))
 
-    return jax.vmap(one)(jax.random.split(key, skills.shape[0]), skills)
+    return jax.vmap(one)(keys, skills)
 
 
 def win_rates(key, skills: np.ndarray, n_games: int, team: Team, tester=raidjax.policies.heuristic,
               weights=None) -> np.ndarray:
     """Win rates ``float64[k]`` of ``tester`` (with ``weights``) on each generated content
-    ``float32[k, K]`` (``team.space``), ``n_games`` games each, one vmapped program."""
-    return np.asarray(_win_rates(key, jnp.asarray(skills, jnp.float32), weights, n_games, tester, team), float)
+    ``float32[k, K]`` (``team.space``), ``n_games`` games each, one vmapped program.
+
+    The contents are padded to a multiple of ``PAD`` rows (copies of the first, played and
+    dropped) so that the tester check and the cross-play, with their different numbers of
+    contents, share one compiled program per tester; the keys are ``split(key, k)`` either way."""
+    skills = np.asarray(skills, np.float32)
+    k = len(skills)
+    pad = -k % PAD
+    keys = jax.random.split(key, k)
+    keys = jnp.concatenate([keys, jnp.repeat(keys[:1], pad, axis=0)])
+    skills = np.concatenate([skills, np.repeat(skills[:1], pad, axis=0)])
+    return np.asarray(_win_rates(keys, jnp.asarray(skills), weights, n_games, tester, team), float)[:k]
 
 
 def stage_tester(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:

@@ -189,3 +189,17 @@ def test_the_paper_scale_uses_both_trainers_paper_presets():
     assert cfg.replace(content_box=False, eval_games=PRESETS["paper"].eval_games) == PRESETS["paper"]
     assert s.preset == "paper" and s.ppo == {} and s.eval_games == 300
     assert [balance.SCALES[k].preset for k in ("smoke", "cpu")] == ["cpu", "cpu"]
+
+
+def test_win_rates_pad_to_a_shared_program_without_changing_any_content_s_games():
+    """Padding the contents to ``PAD`` rows (one compiled program for the tester check and the
+    cross-play) leaves each content's key and games as an unpadded vmap plays them."""
+    team = balance.Team()
+    skills = np.asarray([[2.0, 0.5, 1.5, 0.5], [13.0, 0.55, 1.0, 0.8], [20.0, 0.6, 0.5, 1.0]], np.float32)
+    key = jax.random.PRNGKey(3)
+    padded = balance.win_rates(key, skills, 6, team)
+    assert padded.shape == (3,) and balance.PAD > 3
+    plain = balance._win_rates(jax.random.split(key, 3), jnp.asarray(skills), None, 6,
+                               balance.raidjax.policies.heuristic, team)
+    np.testing.assert_array_equal(padded, np.asarray(plain, float))
+    assert padded[0] < padded[2]  # range 2 and a slow cast against range 20 and a fast one: not all alike

@@ -191,15 +191,21 @@ def test_the_paper_scale_uses_both_trainers_paper_presets():
     assert [balance.SCALES[k].preset for k in ("smoke", "cpu")] == ["cpu", "cpu"]
 
 
-def test_win_rates_pad_to_a_shared_program_without_changing_any_content_s_games():
+def test_win_rates_pad_to_a_shared_program_without_changing_any_content_s_key(monkeypatch):
     """Padding the contents to ``PAD`` rows (one compiled program for the tester check and the
-    cross-play) leaves each content's key and games as an unpadded vmap plays them."""
-    team = balance.Team()
-    skills = np.asarray([[2.0, 0.5, 1.5, 0.5], [13.0, 0.55, 1.0, 0.8], [20.0, 0.6, 0.5, 1.0]], np.float32)
+    cross-play) hands each content the key an unpadded call gives it, and returns its own result.
+    The games themselves are replaced by a record of (key, content) to test only the padding."""
+    seen = []
+
+    def record(keys, skills, weights, n_games, tester, team):
+        seen.append(keys.shape[0])
+        return keys[:, 1].astype(jnp.float32) * 1e-9 + skills[:, 0]  # depends on both, row by row
+
+    monkeypatch.setattr(balance, "_win_rates", record)
     key = jax.random.PRNGKey(3)
-    padded = balance.win_rates(key, skills, 6, team)
-    assert padded.shape == (3,) and balance.PAD > 3
-    plain = balance._win_rates(jax.random.split(key, 3), jnp.asarray(skills), None, 6,
-                               balance.raidjax.policies.heuristic, team)
-    np.testing.assert_array_equal(padded, np.asarray(plain, float))
-    assert padded[0] < padded[2]  # range 2 and a slow cast against range 20 and a fast one: not all alike
+    for k in (3, balance.PAD, balance.PAD + 5):
+        skills = np.arange(4 * k, dtype=np.float32).reshape(k, 4)
+        out = balance.win_rates(key, skills, 6, balance.Team())
+        expect = np.asarray(jax.random.split(key, k)[:, 1].astype(jnp.float32) * 1e-9 + skills[:, 0], float)
+        assert out.shape == (k,) and seen[-1] % balance.PAD == 0 and seen[-1] - k < balance.PAD
+        np.testing.assert_array_equal(out, expect)

@@ -8,6 +8,14 @@ machine may be shared) and, per preset, compile seconds, seconds per update and 
 (one decision = every player acts once; agent steps = 3 x decisions).
 
     python benchmarks/train_throughput.py --presets paper cpu --repeats 3
+    python benchmarks/train_throughput.py --presets cpu --pieces   # where an update's time goes
+
+``--pieces`` also times, for the same arenas and decisions, (1) the environment alone
+(``raidjax.step_autoreset`` in a ``lax.scan`` with random actions and per-arena content, no networks) and (2) whole
+updates with one epoch instead of ``update_epochs``: the difference gives the cost of one epoch
+of minibatch gradient steps (losses, gradients, Adam), and the rest of the update is the rollout
+(environment and the networks' forward passes) with the λ-returns. Random actions play a
+different game than the policy's, so the environment's share is an estimate.
 """
 
 from __future__ import annotations
@@ -56,6 +64,62 @@ def bench(preset: str, repeats: int, **overrides) -> dict:
     }
 
 
+def best_seconds(fn, arg, repeats: int) -> float:
+    """Best of ``repeats`` timed calls of the compiled ``fn(arg)`` after one warm-up call."""
+    jax.block_until_ready(fn(arg))
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(arg))
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def env_only(cfg, repeats: int) -> float:
+    """Seconds of ``cfg.n_steps`` decisions of ``cfg.n_arenas`` arenas with random actions."""
+    import raidjax
+
+    n, n_players = cfg.n_arenas, len(cfg.players)
+    one = raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0])
+    params = jax.tree.map(lambda x: jax.numpy.broadcast_to(x, (n,) + x.shape), one)  # per arena, as in training
+    step_all = jax.vmap(raidjax.step_autoreset)
+
+    def rollout(key):
+        _, state = jax.vmap(raidjax.reset)(jax.random.split(key, n), params)
+
+        def body(carry, _):
+            state, key = carry
+            key, k_act, k_step = jax.random.split(key, 3)
+            acts = jax.random.randint(k_act, (n, n_players), 0, raidjax.N_ACTIONS)
+            _, state, reward, _, _ = step_all(jax.random.split(k_step, n), state, acts, params)
+            return (state, key), reward.sum()
+
+        return jax.lax.scan(body, (state, key), None, cfg.n_steps)[1]
+
+    compiled = jax.jit(rollout).lower(jax.random.PRNGKey(0)).compile()
+    return best_seconds(compiled, jax.random.PRNGKey(1), repeats)
+
+
+def pieces(preset: str, repeats: int, whole: dict, **overrides) -> dict:
+    """Split one update of ``preset`` into rollout and epochs (see the module docstring)."""
+    cfg = PRESETS[preset].replace(**overrides)
+    one = cfg.replace(update_epochs=1)
+    trainer = make_trainer(one)
+    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    update = jax.jit(trainer.update).lower(runner).compile()
+    one_s = best_seconds(update, runner, repeats)
+    update_s = min(whole["seconds_per_update"])
+    epoch_s = (update_s - one_s) / (cfg.update_epochs - 1) if cfg.update_epochs > 1 else float("nan")
+    rollout_s = one_s - epoch_s
+    env_s = env_only(cfg, repeats)
+    return {"preset": preset, "seconds_per_update": round(update_s, 4), "one_epoch_update_s": round(one_s, 4),
+            "epoch_s": round(epoch_s, 4), "rollout_and_returns_s": round(rollout_s, 4),
+            "env_only_s": round(env_s, 4), "networks_in_rollout_s": round(rollout_s - env_s, 4),
+            "shares": {"epochs": round(cfg.update_epochs * epoch_s / update_s, 3),
+                       "environment": round(env_s / update_s, 3),
+                       "rollout_networks_and_returns": round((rollout_s - env_s) / update_s, 3)}}
+
+
 def main() -> None:
     """Parse flags, run the benchmarks, print one JSON object."""
     use_recommended_xla_flags()  # raidjax's commands measure with these (raidjax.xla_flags)
@@ -63,10 +127,15 @@ def main() -> None:
     ap.add_argument("--presets", nargs="+", default=["paper", "cpu"], choices=sorted(PRESETS))
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--arenas", type=int, help="override n_arenas of every preset")
+    ap.add_argument("--pieces", action="store_true", help="also split an update into rollout and epochs")
     args = ap.parse_args()
     overrides = {} if args.arenas is None else {"n_arenas": args.arenas}
     results = [bench(p, args.repeats, **overrides) for p in args.presets]
-    print(json.dumps({"benchmark": "train_throughput", "machine": machine(load=True), "results": results}))
+    out = {"benchmark": "train_throughput", "machine": machine(load=True), "device_count": jax.device_count(),
+           "results": results}
+    if args.pieces:
+        out["pieces"] = [pieces(p, args.repeats, r, **overrides) for p, r in zip(args.presets, results, strict=True)]
+    print(json.dumps(out))
 
 
 if __name__ == "__main__":

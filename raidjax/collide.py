@@ -16,34 +16,35 @@ INF = jnp.inf
 
 
 def to_body_frame(vec: jnp.ndarray, heading: jnp.ndarray) -> jnp.ndarray:
-    """``vec[M, U, 2]`` (world axes) in each unit's frame (x along ``heading[U]``)."""
-    c, s = jnp.cos(heading)[None], jnp.sin(heading)[None]
+    """``vec[..., 2]`` (world axes) in the frames whose x axis is along ``heading[...]`` (broadcast
+    against ``vec[..., 0]``; e.g. ``vec[M, U, 2]`` with every unit's ``heading[U]``)."""
+    c, s = jnp.cos(heading), jnp.sin(heading)
     return jnp.stack([c * vec[..., 0] + s * vec[..., 1], -s * vec[..., 0] + c * vec[..., 1]], axis=-1)
 
 
 def box_distance(q: jnp.ndarray, half: jnp.ndarray) -> jnp.ndarray:
-    """Distance ``float32[M, U]`` from points ``q[M, U, 2]`` (body frame) to squares of half side ``half[U]``."""
-    return jnp.linalg.norm(jnp.maximum(jnp.abs(q) - half[None, :, None], 0.0), axis=-1)
+    """Distance ``float32[...]`` from points ``q[..., 2]`` (body frame) to squares of half side ``half``
+    (broadcast against ``q[..., 0]``; e.g. ``q[M, U, 2]`` and ``half[U]``)."""
+    return jnp.linalg.norm(jnp.maximum(jnp.abs(q) - half[..., None], 0.0), axis=-1)
 
 
-def _slab(q, d, ext):
-    """Entry and exit ``t`` of the ray ``q + t d`` through the box ``|x| <= ext[..., 0], |y| <= ext[..., 1]``."""
-    safe = jnp.where(jnp.abs(d) < 1e-9, 1e-9, d)
-    t1, t2 = (-ext - q) / safe, (ext - q) / safe
-    lo, hi = jnp.minimum(t1, t2), jnp.maximum(t1, t2)
-    still = jnp.abs(d) < 1e-9  # parallel to that axis: inside the slab forever, or never
+def _slab_axis(q, d, ext):
+    """Entry and exit ``t`` of the ray ``q + t d`` through the slab ``|x| <= ext`` (one axis)."""
+    still = jnp.abs(d) < 1e-9  # parallel to the slab: inside it forever, or never
+    inv = 1.0 / jnp.where(still, 1e-9, d)
+    t1, t2 = (-ext - q) * inv, (ext - q) * inv
     inside = jnp.abs(q) <= ext
-    lo = jnp.where(still, jnp.where(inside, -INF, INF), lo)
-    hi = jnp.where(still, jnp.where(inside, INF, -INF), hi)
-    enter, leave = jnp.max(lo, axis=-1), jnp.min(hi, axis=-1)
-    return jnp.where((enter <= leave) & (leave >= 0), jnp.maximum(enter, 0.0), INF)
+    lo = jnp.where(still, jnp.where(inside, -INF, INF), jnp.minimum(t1, t2))
+    hi = jnp.where(still, jnp.where(inside, INF, -INF), jnp.maximum(t1, t2))
+    return lo, hi
 
 
 def _circle(q, d, centre, r):
-    """First ``t >= 0`` at which the ray ``q + t d`` (``|d| = 1``) is within ``r`` of ``centre``."""
+    """First ``t >= 0`` at which the ray ``q + t d`` (``|d| = 1``) is within ``r`` of ``centre``
+    (``[..., 2]`` points and directions, ``r`` and the result ``[...]``)."""
     rel = centre - q
-    along = jnp.sum(rel * d, axis=-1)
-    c = jnp.sum(rel * rel, axis=-1) - r**2
+    along = rel[..., 0] * d[..., 0] + rel[..., 1] * d[..., 1]
+    c = rel[..., 0] ** 2 + rel[..., 1] ** 2 - r**2
     disc = along**2 - c
     t = along - jnp.sqrt(jnp.maximum(disc, 0.0))
     return jnp.where(c <= 0, 0.0, jnp.where((disc >= 0) & (t >= 0), t, INF))
@@ -53,14 +54,20 @@ def ray_entry(q: jnp.ndarray, d: jnp.ndarray, half: jnp.ndarray, r: jnp.ndarray)
     """First ``t >= 0`` at which a disc of radius ``r[M]`` moving from ``q`` along unit vector ``d``
     (``float32[M, U, 2]``, body frame) touches the square of half side ``half[U]``; ``inf`` if never.
 
-    The touching region is the square grown by ``r``: two slabs and four corner discs.
+    The touching region is the square grown by ``r`` (a rounded square). The ray first enters the
+    square grown by ``r`` on both axes; an entry point beside a flat face is the answer, and one in
+    a corner cell (both coordinates beyond ``half``) can only reach the rounded square through that
+    corner's disc, so one slab test and one disc test replace two slabs and four discs.
     """
-    a = jnp.broadcast_to(half[None, :], q.shape[:-1])[..., None]
-    rr = jnp.broadcast_to(r[:, None], q.shape[:-1])
-    t = jnp.minimum(_slab(q, d, jnp.concatenate([a + rr[..., None], a], -1)),
-                    _slab(q, d, jnp.concatenate([a, a + rr[..., None]], -1)))
-    for sx in (-1.0, 1.0):
-        for sy in (-1.0, 1.0):
-            corner = jnp.concatenate([sx * a, sy * a], -1)
-            t = jnp.minimum(t, _circle(q, d, corner, rr))
-    return t
+    a = half[None, :]  # [1, U]
+    ext = a + r[:, None]  # [M, U]
+    lo_x, hi_x = _slab_axis(q[..., 0], d[..., 0], ext)
+    lo_y, hi_y = _slab_axis(q[..., 1], d[..., 1], ext)
+    enter, leave = jnp.maximum(lo_x, lo_y), jnp.minimum(hi_x, hi_y)
+    meets = (enter <= leave) & (leave >= 0)
+    t_box = jnp.where(meets, jnp.maximum(enter, 0.0), 0.0)
+    at = q + t_box[..., None] * d  # where the ray enters the grown square
+    corner_cell = (jnp.abs(at[..., 0]) > a) & (jnp.abs(at[..., 1]) > a)
+    centre = jnp.sign(at) * a[..., None]
+    t_corner = _circle(q, d, centre, jnp.broadcast_to(r[:, None], ext.shape))
+    return jnp.where(meets, jnp.where(corner_cell, t_corner, t_box), INF)

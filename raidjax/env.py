@@ -141,29 +141,36 @@ def _substep(key, state: State, actions, params: Params, table, n_ticks: int):
     """Advance one arena by ``n_ticks`` 0.02 s ticks. Returns ``(state, to_boss: f32[U], back: i32[U])``."""
     dt = n_ticks * TICK
     old_pos = state.pos
-    state = movement.move_players(state, actions, params, dt)
-    still = _boss_still_ticks(state, params, n_ticks)
-    state = movement.move_boss(state, params, dt, (n_ticks - still) * TICK)
-    state = movement.clamp_to_walls(state, params)
-    state = movement.update_moving(state, old_pos, dt)
-    before = state
-    state = combat.start_casts(state, params, heuristic.cast_requests(actions, state.casting.shape[1]))
-    state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
-    state, fired_tick = combat.advance_casts(state, params, n_ticks)
-    state, inst_hits, inst_from, flight = combat.fire(state, params, fired_tick, n_ticks)
+    # Named scopes label each phase's operations in compiled programs and profiles
+    # (benchmarks/step_profile.py); they change nothing else.
+    with jax.named_scope("movement"):
+        state = movement.move_players(state, actions, params, dt)
+        still = _boss_still_ticks(state, params, n_ticks)
+        state = movement.move_boss(state, params, dt, (n_ticks - still) * TICK)
+        state = movement.clamp_to_walls(state, params)
+        state = movement.update_moving(state, old_pos, dt)
+    with jax.named_scope("casting"):
+        before = state
+        state = combat.start_casts(state, params, heuristic.cast_requests(actions, state.casting.shape[1]))
+        state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
+        state, fired_tick = combat.advance_casts(state, params, n_ticks)
+    with jax.named_scope("fire"):
+        state, inst_hits, inst_from, flight = combat.fire(state, params, fired_tick, n_ticks)
     proj = state.projectiles
-    state, proj_hits, proj_from = combat.move_projectiles(state, params, table, flight)
-    state, basic_hits = combat.basic_attacks(state, params, dt)
-    u_n, s_n = fired_tick.shape
-    units = jnp.arange(u_n, dtype=jnp.int32)
-    source = jnp.concatenate([
-        combat.source_index(proj.owner, proj.slot, s_n),
-        combat.source_index(jnp.repeat(units, s_n), jnp.tile(jnp.arange(s_n, dtype=jnp.int32), u_n), s_n),
-        combat.source_index(units, jnp.full(u_n, s_n, jnp.int32), s_n),
-    ])
-    hits = jnp.concatenate([proj_hits, inst_hits, basic_hits])
-    from_pos = jnp.concatenate([proj_from, inst_from, state.pos])
-    state, to_boss, back = combat.resolve_hits(key, state, params, table, hits, source, from_pos)
+    with jax.named_scope("projectiles"):
+        state, proj_hits, proj_from = combat.move_projectiles(state, params, table, flight)
+    with jax.named_scope("hits"):
+        state, basic_hits = combat.basic_attacks(state, params, dt)
+        u_n, s_n = fired_tick.shape
+        units = jnp.arange(u_n, dtype=jnp.int32)
+        source = jnp.concatenate([
+            combat.source_index(proj.owner, proj.slot, s_n),
+            combat.source_index(jnp.repeat(units, s_n), jnp.tile(jnp.arange(s_n, dtype=jnp.int32), u_n), s_n),
+            combat.source_index(units, jnp.full(u_n, s_n, jnp.int32), s_n),
+        ])
+        hits = jnp.concatenate([proj_hits, inst_hits, basic_hits])
+        from_pos = jnp.concatenate([proj_from, inst_from, state.pos])
+        state, to_boss, back = combat.resolve_hits(key, state, params, table, hits, source, from_pos)
     state = combat.regenerate(state, params, dt)
     state = state.replace(clock=state.clock + dt)
     players_dead = ~jnp.any(state.alive[:-1])
@@ -250,7 +257,9 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
         "damage_dealt": jnp.where(was_done, 0.0, to_boss[:n_players]),
         "back_attack": jnp.where(was_done, 0, back[:n_players]),
     }
-    return observe(new, params, table), new, reward, done, info
+    with jax.named_scope("observation"):
+        obs = observe(new, params, table)
+    return obs, new, reward, done, info
 
 
 def next_episode(key: jax.Array, state: State, params: Params) -> tuple[Observation, State]:
@@ -306,6 +315,7 @@ def step_autoreset(key: jax.Array, state: State, actions: jax.Array, params: Par
     """
     k_step, k_reset = jax.random.split(key)
     obs, new, reward, done, info = step(k_step, state, actions, params)
-    obs_next, state_next = next_episode(k_reset, new, params)
+    with jax.named_scope("next_episode"):
+        obs_next, state_next = next_episode(k_reset, new, params)
     info = {**info, "final_observation": obs, "final_result": new.result}
     return _select(done, obs_next, obs), _select(done, state_next, new), reward, done, info

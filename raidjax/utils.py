@@ -64,11 +64,12 @@ def uniform_dice(key: jax.Array, shape: tuple[int, ...]) -> jax.Array:
 
 
 def machine(load: bool = False) -> dict:
-    """A JSON-able description of the JAX device and the host: ``platform``, ``device``,
-    ``cpu_count``, ``processor``, ``jax`` version, and with ``load`` the 1-minute load average
-    (``load_average_1m``; timings on a shared machine depend on it)."""
+    """A JSON-able description of the JAX devices and the host: ``platform``, ``device``,
+    ``device_count`` (devices JAX sees, all hosts), ``cpu_count``, ``processor``, ``jax`` version, and
+    with ``load`` the 1-minute load average (``load_average_1m``; timings on a shared machine depend on it)."""
     dev = jax.devices()[0]
-    out = {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
+    out = {"platform": dev.platform, "device": str(dev.device_kind), "device_count": jax.device_count(),
+           "cpu_count": os.cpu_count(),
            "processor": platform.processor() or platform.machine(), "jax": jax.__version__}
     if load:
         out["load_average_1m"] = round(os.getloadavg()[0], 2)

@@ -103,10 +103,12 @@ def test_readme_python_snippets_run(code):
 
 
 def _commands(text: str) -> dict[str, set[str]]:
-    """``{module: flags}`` of every ``python -m module ...`` command line in ``text``."""
+    """``{module or script: flags}`` of every ``python -m module ...`` and ``python benchmarks/x.py ...``
+    command line in ``text``."""
     out: dict[str, set[str]] = {}
-    for module, rest in re.findall(r"python -m ((?:raidjax|trainers|experiments)\.[\w.]+)([^`\n|]*)", text):
-        out.setdefault(module, set()).update(re.findall(r"--[a-z][\w-]*", rest))
+    pattern = r"python (-m (?:raidjax|trainers|experiments)\.[\w.]+|benchmarks/\w+\.py)([^`\n|]*)"
+    for target, rest in re.findall(pattern, text):
+        out.setdefault(target, set()).update(re.findall(r"--[a-z][\w-]*", rest))
     return out
 
 
@@ -115,9 +117,9 @@ DOC_COMMANDS = _commands((ROOT / "README.md").read_text() + (ROOT / "docs" / "RE
 
 @pytest.mark.parametrize("module", sorted(DOC_COMMANDS))
 def test_documented_commands_exist_with_their_flags(module):
-    """Each documented command's module runs ``--help``, and every flag the docs give it is one of its
-    flags (a dry run that does not train or play)."""
-    out = subprocess.run([sys.executable, "-m", module, "--help"], cwd=ROOT, capture_output=True, text=True,
+    """Each documented command (module or benchmark script) runs ``--help``, and every flag the docs
+    give it is one of its flags (a dry run that does not train or play)."""
+    out = subprocess.run([sys.executable, *module.split(), "--help"], cwd=ROOT, capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     missing = sorted(f for f in DOC_COMMANDS[module] if f not in out.stdout)

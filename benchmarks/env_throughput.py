@@ -22,7 +22,11 @@ from raidjax.utils import machine
 
 
 def make_rollout(n_arenas: int, n_steps: int):
-    """A jittable ``rollout(key, state, params) -> (state, total_reward)`` of ``n_steps`` decisions."""
+    """A jittable ``rollout(key, state, params) -> (state, checksum)`` of ``n_steps`` decisions.
+
+    The checksum adds up the rewards and every observation: a policy that ignores observations
+    (PT-RD) would otherwise let XLA drop their computation from the program.
+    """
 
     def one(key, state, params):
         obs = raidjax.observe(state, params)
@@ -32,7 +36,8 @@ def make_rollout(n_arenas: int, n_steps: int):
             ka, ks = jax.random.split(k)
             actions = raidjax.policies.random(ka, obs, state, params)
             obs, state, reward, _, _ = raidjax.step_autoreset(ks, state, actions, params)
-            return (obs, state), reward.sum()
+            seen = sum(jnp.sum(x.astype(jnp.float32)) for x in jax.tree.leaves(obs))
+            return (obs, state), reward.sum() + seen
 
         (_, state), rewards = jax.lax.scan(body, (obs, state), jax.random.split(key, n_steps))
         return state, rewards.sum()

@@ -15,7 +15,9 @@ machine may be shared) and, per preset, compile seconds, seconds per update and 
 updates with one epoch instead of ``update_epochs``: the difference gives the cost of one epoch
 of minibatch gradient steps (losses, gradients, Adam), and the rest of the update is the rollout
 (environment and the networks' forward passes) with the λ-returns. Random actions play a
-different game than the policy's, so the environment's share is an estimate.
+different game than the policy's, so the environment's share is an estimate. It also reports
+XLA's floating-point operation count of one minibatch gradient and the rate the epochs reach
+(``epoch_gflop_per_s``), to compare with what the device can do.
 """
 
 from __future__ import annotations
@@ -100,6 +102,29 @@ def env_only(cfg, repeats: int) -> float:
     return best_seconds(compiled, jax.random.PRNGKey(1), repeats)
 
 
+def minibatch_flops(trainer, runner) -> float:
+    """XLA's count of floating-point operations of one minibatch gradient (losses and their
+    gradients, no Adam), compiled alone: the networks hold no loops, so the count is complete."""
+    import jax.numpy as jnp
+
+    import raidjax
+    from trainers.mapoca import Batch, loss_fn
+
+    cfg = trainer.config
+    b = cfg.decisions_per_update // cfg.n_minibatches
+    one = raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0])
+    obs, _ = jax.vmap(raidjax.reset, (0, None))(jax.random.split(jax.random.PRNGKey(0), b), one)
+    p = len(cfg.players)
+    batch = Batch(obs, jnp.zeros((b, p), jnp.int32), jnp.zeros((b, p)), jnp.ones((b, p), bool), jnp.zeros(b),
+                  jnp.zeros((b, p)), jnp.zeros(b), jnp.zeros((b, p)))
+    grad = jax.grad(loss_fn, has_aux=True)
+    compiled = jax.jit(lambda prm, bt: grad(prm, bt, trainer.actor, trainer.critic, cfg.clip_eps, cfg.ent_coef)
+                       ).lower(runner.params, batch).compile()
+    cost = compiled.cost_analysis()
+    cost = cost[0] if isinstance(cost, list) else cost
+    return float(cost["flops"])
+
+
 def pieces(preset: str, repeats: int, whole: dict, **overrides) -> dict:
     """Split one update of ``preset`` into rollout and epochs (see the module docstring)."""
     cfg = PRESETS[preset].replace(**overrides)
@@ -112,9 +137,12 @@ def pieces(preset: str, repeats: int, whole: dict, **overrides) -> dict:
     epoch_s = (update_s - one_s) / (cfg.update_epochs - 1) if cfg.update_epochs > 1 else float("nan")
     rollout_s = one_s - epoch_s
     env_s = env_only(cfg, repeats)
+    flops = minibatch_flops(trainer, runner)
     return {"preset": preset, "seconds_per_update": round(update_s, 4), "one_epoch_update_s": round(one_s, 4),
             "epoch_s": round(epoch_s, 4), "rollout_and_returns_s": round(rollout_s, 4),
             "env_only_s": round(env_s, 4), "networks_in_rollout_s": round(rollout_s - env_s, 4),
+            "minibatch_gradient_gflop": round(flops / 1e9, 3),
+            "epoch_gflop_per_s": round(flops * cfg.n_minibatches / epoch_s / 1e9, 1),
             "shares": {"epochs": round(cfg.update_epochs * epoch_s / update_s, 3),
                        "environment": round(env_s / update_s, 3),
                        "rollout_networks_and_returns": round((rollout_s - env_s) / update_s, 3)}}
@@ -131,7 +159,7 @@ def main() -> None:
     args = ap.parse_args()
     overrides = {} if args.arenas is None else {"n_arenas": args.arenas}
     results = [bench(p, args.repeats, **overrides) for p in args.presets]
-    out = {"benchmark": "train_throughput", "machine": machine(load=True), "device_count": jax.device_count(),
+    out = {"benchmark": "train_throughput", "machine": machine(load=True),
            "results": results}
     if args.pieces:
         out["pieces"] = [pieces(p, args.repeats, r, **overrides) for p, r in zip(args.presets, results, strict=True)]

@@ -28,23 +28,24 @@ def box_distance(q: jnp.ndarray, half: jnp.ndarray) -> jnp.ndarray:
     return jnp.linalg.norm(jnp.maximum(jnp.abs(q) - half[..., None], 0.0), axis=-1)
 
 
-def _slab_axis(q, d, ext):
-    """Entry and exit ``t`` of the ray ``q + t d`` through the slab ``|x| <= ext`` (one axis)."""
-    still = jnp.abs(d) < 1e-9  # parallel to the slab: inside it forever, or never
-    inv = 1.0 / jnp.where(still, 1e-9, d)
-    t1, t2 = (-ext - q) * inv, (ext - q) * inv
+def _slab(q, d, ext):
+    """Entry and exit ``t`` of the ray ``q + t d`` through the box ``|x| <= ext[..., 0], |y| <= ext[..., 1]``."""
+    safe = jnp.where(jnp.abs(d) < 1e-9, 1e-9, d)
+    t1, t2 = (-ext - q) / safe, (ext - q) / safe
+    lo, hi = jnp.minimum(t1, t2), jnp.maximum(t1, t2)
+    still = jnp.abs(d) < 1e-9  # parallel to that axis: inside the slab forever, or never
     inside = jnp.abs(q) <= ext
-    lo = jnp.where(still, jnp.where(inside, -INF, INF), jnp.minimum(t1, t2))
-    hi = jnp.where(still, jnp.where(inside, INF, -INF), jnp.maximum(t1, t2))
-    return lo, hi
+    lo = jnp.where(still, jnp.where(inside, -INF, INF), lo)
+    hi = jnp.where(still, jnp.where(inside, INF, -INF), hi)
+    enter, leave = jnp.max(lo, axis=-1), jnp.min(hi, axis=-1)
+    return jnp.where((enter <= leave) & (leave >= 0), jnp.maximum(enter, 0.0), INF)
 
 
 def _circle(q, d, centre, r):
-    """First ``t >= 0`` at which the ray ``q + t d`` (``|d| = 1``) is within ``r`` of ``centre``
-    (``[..., 2]`` points and directions, ``r`` and the result ``[...]``)."""
+    """First ``t >= 0`` at which the ray ``q + t d`` (``|d| = 1``) is within ``r`` of ``centre``."""
     rel = centre - q
-    along = rel[..., 0] * d[..., 0] + rel[..., 1] * d[..., 1]
-    c = rel[..., 0] ** 2 + rel[..., 1] ** 2 - r**2
+    along = jnp.sum(rel * d, axis=-1)
+    c = jnp.sum(rel * rel, axis=-1) - r**2
     disc = along**2 - c
     t = along - jnp.sqrt(jnp.maximum(disc, 0.0))
     return jnp.where(c <= 0, 0.0, jnp.where((disc >= 0) & (t >= 0), t, INF))
@@ -54,20 +55,14 @@ def ray_entry(q: jnp.ndarray, d: jnp.ndarray, half: jnp.ndarray, r: jnp.ndarray)
     """First ``t >= 0`` at which a disc of radius ``r[M]`` moving from ``q`` along unit vector ``d``
     (``float32[M, U, 2]``, body frame) touches the square of half side ``half[U]``; ``inf`` if never.
 
-    The touching region is the square grown by ``r`` (a rounded square). The ray first enters the
-    square grown by ``r`` on both axes; an entry point beside a flat face is the answer, and one in
-    a corner cell (both coordinates beyond ``half``) can only reach the rounded square through that
-    corner's disc, so one slab test and one disc test replace two slabs and four discs.
+    The touching region is the square grown by ``r``: two slabs and four corner discs.
     """
-    a = half[None, :]  # [1, U]
-    ext = a + r[:, None]  # [M, U]
-    lo_x, hi_x = _slab_axis(q[..., 0], d[..., 0], ext)
-    lo_y, hi_y = _slab_axis(q[..., 1], d[..., 1], ext)
-    enter, leave = jnp.maximum(lo_x, lo_y), jnp.minimum(hi_x, hi_y)
-    meets = (enter <= leave) & (leave >= 0)
-    t_box = jnp.where(meets, jnp.maximum(enter, 0.0), 0.0)
-    at = q + t_box[..., None] * d  # where the ray enters the grown square
-    corner_cell = (jnp.abs(at[..., 0]) > a) & (jnp.abs(at[..., 1]) > a)
-    centre = jnp.sign(at) * a[..., None]
-    t_corner = _circle(q, d, centre, jnp.broadcast_to(r[:, None], ext.shape))
-    return jnp.where(meets, jnp.where(corner_cell, t_corner, t_box), INF)
+    a = jnp.broadcast_to(half[None, :], q.shape[:-1])[..., None]
+    rr = jnp.broadcast_to(r[:, None], q.shape[:-1])
+    t = jnp.minimum(_slab(q, d, jnp.concatenate([a + rr[..., None], a], -1)),
+                    _slab(q, d, jnp.concatenate([a, a + rr[..., None]], -1)))
+    for sx in (-1.0, 1.0):
+        for sy in (-1.0, 1.0):
+            corner = jnp.concatenate([sx * a, sy * a], -1)
+            t = jnp.minimum(t, _circle(q, d, corner, rr))
+    return t

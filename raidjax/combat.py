@@ -353,8 +353,8 @@ def move_projectiles(state: State, params: Params, table: jnp.ndarray, flight: j
     t_in = collide.ray_entry(q0, d0, half, r_proj)
     cross = touch & (t_in <= step[:, None])
     straight = flying & (p.kind == PROJ_STRAIGHT)
-    t_first, first = _min_and_argmin(jnp.where(cross, t_in, jnp.inf))
-    hit_s = straight & (t_first < jnp.inf)  # from the same reduction: t_in is computed once
+    first = jnp.argmin(jnp.where(cross, t_in, jnp.inf), axis=1)
+    hit_s = straight & jnp.any(cross, axis=1)
     hits_s = hit_s[:, None] & jax.nn.one_hot(first, u_n, dtype=bool)
     pos_s = p.pos + p.direction * step[:, None]
     out = jnp.any(jnp.abs(pos_s) > HALF_ARENA, axis=-1)
@@ -379,17 +379,6 @@ def move_projectiles(state: State, params: Params, table: jnp.ndarray, flight: j
     gone = (homing & (hit_h | ~t_alive)) | (straight & (hit_s | out)) | (life <= EPS)
     new = p.replace(live=p.live & ~gone, pos=pos, life=life, hit_mask=p.hit_mask | hits_a)
     return state.replace(projectiles=new), hits, p.pos
-
-
-def _min_and_argmin(x: jnp.ndarray) -> tuple[jnp.ndarray, jnp.ndarray]:
-    """``(min, first index of the min)`` of ``x[M, U]`` over its last axis, in one reduction."""
-    idx = jax.lax.broadcasted_iota(jnp.int32, x.shape, 1)
-
-    def better(a, b):
-        take_a = (a[0] < b[0]) | ((a[0] == b[0]) & (a[1] < b[1]))
-        return jnp.where(take_a, a[0], b[0]), jnp.where(take_a, a[1], b[1])
-
-    return jax.lax.reduce((x, idx), (jnp.float32(jnp.inf), jnp.int32(0)), better, (1,))
 
 
 def resolve_hits(key, state: State, params: Params, table: jnp.ndarray, hits, source, from_pos):
@@ -431,6 +420,8 @@ def resolve_hits(key, state: State, params: Params, table: jnp.ndarray, hits, so
     harm = hits & enemy & (f[:, F_ENEMY, None] > 0) & ~dodge
     damage = jnp.where(harm, jnp.floor(f[:, F_BASE, None] * mult + 1e-3), 0.0)  # [E, U]
     heal = jnp.where(hits & ~enemy & (f[:, F_ALLY, None] > 0), f[:, F_HEAL, None], 0.0)
+    # Materialise once: otherwise XLA:CPU recomputes the whole chain inside every reduction below.
+    damage, heal, back = jax.lax.optimization_barrier((damage, heal, back))
 
     hp = state.hp - jnp.sum(damage, axis=0)
     alive = state.alive & (hp > 0)

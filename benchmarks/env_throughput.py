@@ -45,6 +45,17 @@ def make_rollout(n_arenas: int, n_steps: int):
     return jax.vmap(one)
 
 
+def arenas(n_arenas: int, rules: str, n_substeps: int):
+    """``(keys, state, params)`` of ``n_arenas`` fresh arenas, each with its own copy of the range-9
+    reference content: keys ``[N]``, ``State`` and ``Params`` batched ``[N, ...]``."""
+    config = raidjax.EnvConfig.from_rules(rules, n_substeps=n_substeps)
+    params = raidjax.make_params(skill_range=9.0, config=config)
+    batch = jax.tree.map(lambda x: jnp.broadcast_to(x, (n_arenas,) + x.shape), params)
+    keys = jax.random.split(jax.random.key(0), n_arenas)
+    _, state = jax.vmap(raidjax.reset)(keys, batch)
+    return keys, state, batch
+
+
 def main() -> None:
     raidjax.use_recommended_xla_flags()  # raidjax's commands measure with these (raidjax.xla_flags)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -56,11 +67,8 @@ def main() -> None:
     ap.add_argument("--substeps", type=int, default=5, choices=(1, 5))
     args = ap.parse_args()
 
-    config = raidjax.EnvConfig.from_rules(args.rules, n_substeps=args.substeps)
-    params = raidjax.make_params(skill_range=9.0, config=config)
-    batch = jax.tree.map(lambda x: jnp.broadcast_to(x, (args.arenas,) + x.shape), params)
-    keys = jax.random.split(jax.random.key(0), args.arenas)
-    _, state = jax.vmap(raidjax.reset)(keys, batch)
+    keys, state, batch = arenas(args.arenas, args.rules, args.substeps)
+    params = jax.tree.map(lambda x: x[0], batch)
     rollout = make_rollout(args.arenas, args.steps)
 
     t0 = time.perf_counter()
@@ -103,7 +111,7 @@ def main() -> None:
                      "compile_s": round(pt_compile_s, 2), "seconds": round(pt_s, 3),
                      # Measured games; under chained rules each arena's warm-up game is in the time.
                      "games_per_s": round(args.playtest_games / pt_s),
-                     "warm_up_game": config.chains_episodes,
+                     "warm_up_game": params.config.chains_episodes,
                      "measured_decisions_per_s": round(float(res["length"].sum()) / pt_s),
                      "win_rate": round(float(raidjax.win_rate(res)), 3)},
     }))

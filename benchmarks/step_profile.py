@@ -24,8 +24,7 @@ import tempfile
 import time
 
 import jax
-import jax.numpy as jnp
-from env_throughput import make_rollout
+from env_throughput import arenas, make_rollout
 
 import raidjax
 from raidjax.utils import machine
@@ -73,11 +72,7 @@ def main() -> None:
     ap.add_argument("--substeps", type=int, default=5, choices=(1, 5))
     args = ap.parse_args()
 
-    config = raidjax.EnvConfig.from_rules(args.rules, n_substeps=args.substeps)
-    params = raidjax.make_params(skill_range=9.0, config=config)
-    batch = jax.tree.map(lambda x: jnp.broadcast_to(x, (args.arenas,) + x.shape), params)
-    _, state = jax.vmap(raidjax.reset)(jax.random.split(jax.random.key(0), args.arenas), batch)
-    keys = jax.random.split(jax.random.key(1), args.arenas)
+    keys, state, batch = arenas(args.arenas, args.rules, args.substeps)
     compiled = jax.jit(make_rollout(args.arenas, args.steps)).lower(keys, state, batch).compile()
     jax.block_until_ready(compiled(keys, state, batch))  # warm
     t0 = time.perf_counter()

@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
+from raidjax.playtest import auto_games_per_arena
 from raidjax.sharding import put_batch
 from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
@@ -261,11 +262,13 @@ def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> d
     """Win rates of every cell; returns ``{"cells": [...]}`` (one dict per cell)."""
     actor, weights = load_actors(rf, scale, runs, base_seed)
     cells = eval_cells(runs)
+    chained = auto_games_per_arena(scale.games)  # each arena plays up to 10 games in a row
     contents = _stack([content_of(k, rg) for _, k, rg, _ in cells])
     w = jax.tree.map(lambda x: x[jnp.asarray([c[0] for c in cells])], weights)
     t = time.perf_counter()
     out = np.asarray(per_team(jax.random.PRNGKey(base_seed + 777), actor, w, contents,
-                              lambda k, c, p: raidjax.playtest(k, c, p, scale.games)["outcome"]))
+                              lambda k, c, p: raidjax.playtest(k, c, p, scale.games,
+                                                               games_per_arena=chained)["outcome"]))
     rf.log(f"evaluate: {len(cells)} team cells x {scale.games} games in {time.perf_counter() - t:.0f}s")
     rows = [{"agent": runs[i]["name"].split("/")[1] if runs[i]["group"] == "robust" else "MA-POCA",
              "group": runs[i]["group"], "run": runs[i]["name"], "seed": s, "content": kind, "range": rg,
@@ -279,7 +282,8 @@ def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> d
     pt_contents = _stack([content_of(kind, rg) for kind, rg, _ in pt_cells])
     for name, pol in (("PT-HR", raidjax.policies.heuristic), ("PT-RD", raidjax.policies.random)):
         key = jax.random.PRNGKey(base_seed + (999 if name == "PT-HR" else 998))
-        out = raidjax.playtest(key, pt_contents, pol, len(pt_cells) * scale.games)["outcome"]
+        out = raidjax.playtest(key, pt_contents, pol, len(pt_cells) * scale.games,
+                               games_per_arena=chained)["outcome"]
         for (kind, rg, sd), o in zip(pt_cells, np.asarray(out).reshape(len(pt_cells), scale.games), strict=True):
             rows.append({"agent": name, "group": "scripted", "run": name, "seed": sd, "content": kind, "range": rg,
                          "win_rate": float(np.mean(o == 1)), "draw_rate": float(np.mean(o == 3)),
@@ -298,7 +302,9 @@ def heatmaps(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> d
     contents = _stack([test_content(rg) for _, rg in grid])
     w = jax.tree.map(lambda x: x[jnp.asarray([g[0] for g in grid])], weights)
     maps = np.asarray(per_team(jax.random.PRNGKey(base_seed + 555), actor, w, contents,
-                               lambda k, c, p: raidjax.playtest_occupancy(k, c, p, scale.heatmap_games)))
+                               lambda k, c, p: raidjax.playtest_occupancy(
+                                  k, c, p, scale.heatmap_games,
+                                  games_per_arena=auto_games_per_arena(scale.heatmap_games))))
     maps = maps.reshape(len(agents), len(scale.heatmap_ranges), *maps.shape[1:])
     buf = io.BytesIO()
     np.savez(buf, maps=maps, agents=np.asarray(agents), ranges=np.asarray(scale.heatmap_ranges))

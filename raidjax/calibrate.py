@@ -2,10 +2,11 @@
 
     python -m raidjax.calibrate --games 2000 [--seed S] [--rules reference|clean] [--substeps 5|1] [--json F]
 
-Every cell is ``--games`` games with the reference content at that skill range, all played in
-parallel (under the default ``"reference"`` rules each arena plays a discarded warm-up game
-first); the tolerance check is the project's calibration contract (PT-HR within ±0.10, PT-RD
-within ±0.05), made for the default rules at the reference tick (5 sub-steps).
+Every cell is ``--games`` games with the reference content at that skill range, played in
+parallel arenas of up to 10 games in a row each (``raidjax.playtest``'s ``games_per_arena``;
+under the default ``"reference"`` rules each arena plays one discarded warm-up game first);
+the tolerance check is the project's calibration contract (PT-HR within ±0.10, PT-RD within
+±0.05), made for the default rules at the reference tick (5 sub-steps).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
+from raidjax.playtest import auto_games_per_arena
 from raidjax.utils import HelpFormatter, atomic_write, check_output_file, run_cli, whole_number_arg
 
 RANGES = (5.0, 9.0, 13.0, 17.0)
@@ -29,7 +31,8 @@ TOLERANCE = {"heuristic": 0.10, "random": 0.05}
 LABEL = {"heuristic": "PT-HR", "random": "PT-RD"}
 
 
-def measure(n_games: int, seed: int = 0, ranges=RANGES, config: raidjax.EnvConfig | None = None) -> dict:
+def measure(n_games: int, seed: int = 0, ranges=RANGES, config: raidjax.EnvConfig | None = None,
+            games_per_arena: int | None = None) -> dict:
     """Win rates of PT-HR and PT-RD at each range.
 
     Args:
@@ -37,6 +40,8 @@ def measure(n_games: int, seed: int = 0, ranges=RANGES, config: raidjax.EnvConfi
         seed: PRNG seed.
         ranges: skill ranges (columns).
         config: ``EnvConfig`` (rules, sub-steps); default ``EnvConfig()``, the reference rules.
+        games_per_arena: games each arena plays in a row (``raidjax.playtest``); default
+            ``auto_games_per_arena(n_games)``.
 
     Returns:
         ``{policy: {"win_rate": [..], "stderr": [..], "mean_length": [..]}}`` for
@@ -47,7 +52,8 @@ def measure(n_games: int, seed: int = 0, ranges=RANGES, config: raidjax.EnvConfi
     out = {}
     for i, name in enumerate(("heuristic", "random")):
         policy = raidjax.policies.BY_NAME[name]
-        res = raidjax.playtest(jax.random.key(seed * 1000 + i), batch, policy, n_games * len(ranges))
+        res = raidjax.playtest(jax.random.key(seed * 1000 + i), batch, policy, n_games * len(ranges),
+                               games_per_arena=games_per_arena or auto_games_per_arena(n_games))
         wins = np.asarray(res["outcome"] == raidjax.types.WIN).reshape(len(ranges), n_games).mean(axis=1)
         length = np.asarray(res["length"]).reshape(len(ranges), n_games).mean(axis=1)
         out[name] = {

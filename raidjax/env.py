@@ -122,7 +122,7 @@ def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Par
 
     The reference boss chases, then tries its skills, every 0.02 s tick, and stands still from
     the tick after a cast starts until it fires. With one tick per sub-step that is the order
-    of ``_substep``; with several, the boss moved for the whole sub-step before the cast
+    of ``substep``; with several, the boss moved for the whole sub-step before the cast
     started, so its displacement is scaled to the start tick plus the ticks after the cast fired.
     """
     if n_ticks == 1:
@@ -137,7 +137,7 @@ def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Par
     return state.replace(pos=state.pos.at[b].set(pos_b))
 
 
-def _substep(key, state: State, actions, params: Params, table, n_ticks: int):
+def substep(key, state: State, actions, params: Params, table, n_ticks: int):
     """Advance one arena by ``n_ticks`` 0.02 s ticks. Returns ``(state, to_boss: f32[U], back: i32[U])``."""
     dt = n_ticks * TICK
     old_pos = state.pos
@@ -231,16 +231,16 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     was_done = state.result != RUNNING
     table = combat.effect_table(params)
 
-    def substep(carry, k):
+    def one_substep(carry, k):
         cur, to_boss, back = carry
-        nxt, tb, bk = _substep(k, cur, actions, params, table, n_ticks)
+        nxt, tb, bk = substep(k, cur, actions, params, table, n_ticks)
         running = cur.result == RUNNING
         return (_select(running, nxt, cur), to_boss + jnp.where(running, tb, 0.0),
                 back + jnp.where(running, bk, 0)), None
 
     zeros = (jnp.zeros(n_players + 1), jnp.zeros(n_players + 1, jnp.int32))
     # A scan compiles the sub-step once, whatever n_substeps is.
-    (new, to_boss, back), _ = jax.lax.scan(substep, (state, *zeros), jax.random.split(key, n_sub))
+    (new, to_boss, back), _ = jax.lax.scan(one_substep, (state, *zeros), jax.random.split(key, n_sub))
     decision = new.decision + 1
     result = jnp.where((new.result == RUNNING) & (decision >= params.config.max_decisions), DRAW, new.result)
     new = new.replace(decision=decision, result=jnp.int32(result))

@@ -17,7 +17,6 @@ import jax.numpy as jnp
 from raidjax import validate
 from raidjax.env import next_episode, reset, step
 from raidjax.logs import HEATMAP_BINS, episode_summary, grid_cell
-from raidjax.observation import observe
 from raidjax.sharding import shard_batch
 from raidjax.types import RUNNING, Params
 
@@ -93,115 +92,187 @@ def broadcast_params(params: Params, n_games: int) -> Params:
     return jax.tree.map(lambda x: jnp.repeat(x, n_games // params.team.shape[0], axis=0), params)
 
 
-def _play_until_done(key: jax.Array, state, batch: Params, policy: Policy, n_games: int, fold, acc):
-    """Step ``n_games`` arenas until every one's episode has ended; ``fold(acc, state)`` sees the
-    start state and the state after every decision. Returns ``(final state, acc)``."""
-    obs = jax.vmap(observe)(state, batch)
-    max_t = batch.config.max_decisions
+def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, games_per_arena: int,
+                fold=None, acc=None):
+    """Play ``games_per_arena`` measured games in a row in each of ``n_arenas`` arenas (``batch``:
+    params with a leading ``n_arenas`` axis) and return ``(summaries, acc)``: ``episode_summary``
+    of every measured game, each leaf ``[n_arenas, games_per_arena, ...]``, in the order played.
+
+    An arena that ends a game starts its ``next_episode`` in the same decision's iteration, so no
+    arena waits for the batch's longest game until it has played all of its own. Under rules
+    whose episodes depend on the one before (``EnvConfig.chains_episodes``: the reference rules)
+    each arena first plays one warm-up game, discarded, and its measured games follow it, as the
+    reference build's arenas chain their games. ``fold(acc, state, counted: bool[n_arenas])`` sees
+    the state at the start of every decision; ``counted`` marks the arenas playing a measured game.
+    """
+    k = games_per_arena
+    warm = 1 if batch.config.chains_episodes else 0
+    max_t = (warm + k) * batch.config.max_decisions
+    k_reset, k_play = jax.random.split(key)
+    batch = shard_batch(batch, n_arenas)  # arenas are independent: spread them over every device
+    obs, state = jax.vmap(reset)(jax.random.split(k_reset, n_arenas), batch)
+    state = shard_batch(state, n_arenas)
+    template = episode_summary(state)
+    summaries = jax.tree.map(lambda x: jnp.zeros((n_arenas, k) + x.shape[1:], x.dtype), template)
+    played = jnp.zeros(n_arenas, jnp.int32)  # games ended so far, warm-up included
+    fold = fold or (lambda a, _s, _c: a)
 
     def play(carry):
-        t, obs, state, acc = carry
-        keys = jax.random.split(jax.random.fold_in(key, t), 2 * n_games)  # raw or typed keys
-        actions = jax.vmap(policy)(keys[:n_games], obs, state, batch)
-        obs, state, _, _, _ = jax.vmap(step)(keys[n_games:], state, actions, batch)
-        return t + 1, obs, state, fold(acc, state)
+        t, obs, state, played, summaries, acc = carry
+        active = played < warm + k
+        acc = fold(acc, state, active & (played >= warm))
+        keys = jax.random.split(jax.random.fold_in(k_play, t), 3 * n_arenas)  # raw or typed keys
+        actions = jax.vmap(policy)(keys[:n_arenas], obs, state, batch)
+        obs, state, _, _, _ = jax.vmap(step)(keys[n_arenas:2 * n_arenas], state, actions, batch)
+        ended = active & (state.result != RUNNING)
+        measured = ended & (played >= warm)
+        slot = jax.nn.one_hot(played - warm, k, dtype=bool) & measured[:, None]  # [A, k]
+        summary = episode_summary(state)
+        summaries = jax.tree.map(
+            lambda buf, x: jnp.where(slot.reshape(slot.shape + (1,) * (x.ndim - 1)), x[:, None], buf),
+            summaries, summary)
+        played = played + ended
+        again = ended & (played < warm + k)
+        obs_next, state_next = jax.vmap(next_episode)(keys[2 * n_arenas:], state, batch)
+        obs = jax.tree.map(lambda a, b: jnp.where(again.reshape((-1,) + (1,) * (a.ndim - 1)), a, b), obs_next, obs)
+        state = jax.tree.map(lambda a, b: jnp.where(again.reshape((-1,) + (1,) * (a.ndim - 1)), a, b),
+                             state_next, state)
+        return t + 1, obs, state, played, summaries, acc
 
     def running(carry):
-        t, _, state, _ = carry
-        return (t < max_t) & jnp.any(state.result == RUNNING)
+        t, _, _, played, _, _ = carry
+        return (t < max_t) & jnp.any(played < warm + k)
 
-    _, _, state, acc = jax.lax.while_loop(running, play, (jnp.int32(0), obs, state, fold(acc, state)))
-    return state, acc
-
-
-def _play_games(key: jax.Array, batch: Params, policy: Policy, n_games: int, fold=None, acc=None):
-    """Play ``n_games`` measured games, one per arena (``batch``: params with a leading
-    ``n_games`` axis). Under rules whose episodes depend on the one before
-    (``EnvConfig.chains_episodes``: the reference rules), every arena first plays a warm-up
-    game that is discarded and the measured game is its ``next_episode``, as the reference
-    build's arenas chain their games. ``fold(acc, state)`` sees only the measured games.
-    Returns ``(final state, acc)``."""
-    fold = fold or (lambda a, _: a)
-    k_reset, k_play = jax.random.split(key)
-    batch = shard_batch(batch, n_games)  # games are independent: spread them over every device
-    _, state = jax.vmap(reset)(jax.random.split(k_reset, n_games), batch)
-    state = shard_batch(state, n_games)
-    if batch.config.chains_episodes:
-        k_warm, k_next = jax.random.split(jax.random.fold_in(key, 1))
-        state, _ = _play_until_done(k_warm, state, batch, policy, n_games, lambda a, _: a, None)
-        _, state = jax.vmap(next_episode)(jax.random.split(k_next, n_games), state, batch)
-    return _play_until_done(k_play, state, batch, policy, n_games, fold, acc)
+    carry = jax.lax.while_loop(running, play, (jnp.int32(0), obs, state, played, summaries, acc))
+    return carry[4], carry[5]
 
 
-@partial(jax.jit, static_argnames=("policy", "n_games"))
-def _playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weights) -> dict[str, jax.Array]:
-    state, _ = _play_games(key, broadcast_params(params, n_games), bind(policy, weights), n_games)
-    return episode_summary(state)
+def arena_params(params: Params, n_games: int, games_per_arena: int) -> Params:
+    """The content of each of ``n_games // games_per_arena`` arenas (``broadcast_params`` of
+    ``params`` over the arenas: arena ``a`` plays games ``a * games_per_arena`` onwards)."""
+    return broadcast_params(params, n_games // games_per_arena)
 
 
-def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weights=None) -> dict[str, jax.Array]:
-    """Play ``n_games`` games in parallel until every one has ended (win, loss or draw).
+def _flatten_games(summaries: dict[str, jax.Array]) -> dict[str, jax.Array]:
+    """``[A, k, ...]`` -> ``[A * k, ...]``: game ``a * k + j`` is arena ``a``'s ``j``-th measured game."""
+    return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), summaries)
+
+
+@partial(jax.jit, static_argnames=("policy", "n_games", "games_per_arena"))
+def _playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, games_per_arena: int,
+              weights) -> dict[str, jax.Array]:
+    n_arenas = n_games // games_per_arena
+    summaries, _ = _play_games(key, arena_params(params, n_games, games_per_arena), bind(policy, weights),
+                               n_arenas, games_per_arena)
+    return _flatten_games(summaries)
+
+
+def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weights=None,
+             games_per_arena: int = 1) -> dict[str, jax.Array]:
+    """Play ``n_games`` games in ``n_games // games_per_arena`` parallel arenas, each arena playing
+    its ``games_per_arena`` games in a row (``next_episode``), until every arena has played its own.
 
     Under the ``"reference"`` rules an arena's games depend on the one before (carried
-    cooldowns, the 2023 reset exception), so every arena plays a discarded warm-up game first
-    and the measured game is its next episode (about twice the cost; see docs/GAME.md). Under
-    the ``"clean"`` rules every game is an arena's first.
+    cooldowns, the 2023 reset exception), so every arena plays one discarded warm-up game first
+    and its measured games follow it, as the reference build's arenas chain their games
+    (docs/GAME.md). Under the ``"clean"`` rules every game starts fresh. An arena that ends a game
+    starts its next one at once, so with ``games_per_arena > 1`` arenas no longer wait for the
+    batch's longest game, and the warm-up is paid once per arena: the same games (each arena's
+    first ``games_per_arena`` measured ones, short or long) at a fraction of the cost.
 
-    With several devices (GPUs, hosts after ``jax.distributed.initialize()``), the games are
-    split evenly over all of them when ``n_games`` is a multiple of the device count
+    With several devices (GPUs, hosts after ``jax.distributed.initialize()``), the arenas are
+    split evenly over all of them when their number is a multiple of the device count
     (``raidjax.sharding``); the results are the same as on one device.
 
     Args:
         key: PRNG key (typed or a legacy ``uint32[2]`` key).
-        params: content, unbatched or batched (see ``broadcast_params``).
+        params: content, unbatched or batched (see ``broadcast_params``; with a batch of ``G``
+            contents each content's games are ``n_games // G`` consecutive games, which must be
+            a multiple of ``games_per_arena`` so that every arena plays one content).
         policy: ``policy(key, obs, state, params) -> int32[P]`` for one arena (e.g.
             ``raidjax.policies.heuristic``); it must be hashable (a function, not a lambda
             rebuilt every call, to avoid recompiling). With ``weights``, it is called
             ``policy(weights, key, obs, state, params)``.
-        n_games: number of games, a whole number >= 1 (static: one compilation per value).
+        n_games: number of measured games, a whole number >= 1 (static: one compilation per value).
         weights: ``None``, or the policy's weights (a pytree of arrays). They are an argument of
             the compiled program, not constants in it, so evaluating many checkpoints of one
             network compiles once (``trainers.mapoca.load_policy`` returns ``(policy, weights)``).
+        games_per_arena: measured games each arena plays in a row, a whole number >= 1 dividing
+            ``n_games`` (static).
 
     Returns:
-        Dict of arrays with leading axis ``n_games``: ``outcome`` int32 (1 win, 2 loss, 3 draw),
-        ``length`` int32 (decisions), ``damage`` float32[n, P] (to the boss), ``back_attacks``
-        int32[n, P], ``deaths`` int32 (players dead at the end), ``alive`` bool[n, P],
-        ``dropped`` int32 (projectiles dropped), ``boss_hp`` float32.
+        Dict of arrays with leading axis ``n_games`` (game ``a * games_per_arena + j`` is arena
+        ``a``'s ``j``-th measured game): ``outcome`` int32 (1 win, 2 loss, 3 draw), ``length``
+        int32 (decisions), ``damage`` float32[n, P] (to the boss), ``back_attacks`` int32[n, P],
+        ``deaths`` int32 (players dead at the end), ``alive`` bool[n, P], ``dropped`` int32
+        (projectiles dropped), ``boss_hp`` float32.
 
     Raises:
         ValueError: before anything compiles, as ``check_args``: ``n_games`` not a whole number
             >= 1 (``0``, ``-1``, ``2.5``, ``"3"``, ``True``), ``params`` not ``Params`` or batched
-            wrongly, ``policy`` not a hashable callable, ``weights`` not a pytree of arrays.
+            wrongly, ``policy`` not a hashable callable, ``weights`` not a pytree of arrays,
+            ``games_per_arena`` not a whole number >= 1 dividing every content's games.
     """
-    return _playtest(key, params, policy, check_args(params, n_games, policy, weights), weights)
+    n_games = check_args(params, n_games, policy, weights)
+    return _playtest(key, params, policy, n_games, check_games_per_arena(params, n_games, games_per_arena), weights)
 
 
-@partial(jax.jit, static_argnames=("policy", "n_games", "bins"))
-def _playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int, bins: int, weights) -> jax.Array:
-    batch = broadcast_params(params, n_games)
+MOST_GAMES_PER_ARENA = 10
+
+
+def auto_games_per_arena(n_games: int, most: int = MOST_GAMES_PER_ARENA) -> int:
+    """The ``games_per_arena`` raidjax's own measurements use for ``n_games`` games of one content:
+    the largest whole number ``<= most`` dividing ``n_games`` (10 for 1000 games, 8 for 8, 1 for 7).
+
+    Ten games in a row already pay the warm-up once per ten measured games and keep the arenas
+    busy; more would leave too few arenas to fill the machine."""
+    n = validate.whole_number("n_games", n_games, 1)
+    return max(d for d in range(1, min(most, n) + 1) if n % d == 0)
+
+
+def check_games_per_arena(params: Params, n_games: int, games_per_arena) -> int:
+    """``games_per_arena`` as a Python ``int`` after checking that it is a whole number >= 1 that
+    divides each content's games (``n_games``, or ``n_games // G`` for ``G`` contents).
+
+    Raises:
+        ValueError: one line naming ``games_per_arena``, the value and what is allowed.
+    """
+    k = validate.whole_number("games_per_arena", games_per_arena, 1)
+    per_content = n_games // (params.team.shape[0] if params.team.ndim == 2 else 1)
+    if per_content % k:
+        raise ValueError(f"games_per_arena: value {k} does not divide the {per_content} games of each content; "
+                         f"allowed: a whole number >= 1 dividing {per_content}")
+    return k
+
+
+@partial(jax.jit, static_argnames=("policy", "n_games", "bins", "games_per_arena"))
+def _playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int, bins: int,
+                        games_per_arena: int, weights) -> jax.Array:
+    batch = arena_params(params, n_games, games_per_arena)
     n_players = batch.team.shape[-1] - 1
 
-    def count(counts, state):
-        cell = grid_cell(state.pos[:, :n_players], bins)  # [n, P, 2]
-        w = (state.alive[:, :n_players] & (state.result == RUNNING)[:, None]).astype(jnp.float32)
+    def count(counts, state, counted):
+        cell = grid_cell(state.pos[:, :n_players], bins)  # [A, P, 2]
+        running = counted & (state.result == RUNNING)
+        w = (state.alive[:, :n_players] & running[:, None]).astype(jnp.float32)
         player = jnp.broadcast_to(jnp.arange(n_players), w.shape)
         return counts.at[player, cell[..., 0], cell[..., 1]].add(w)
 
-    _, counts = _play_games(key, batch, bind(policy, weights), n_games, count, jnp.zeros((n_players, bins, bins)))
+    _, counts = _play_games(key, batch, bind(policy, weights), n_games // games_per_arena, games_per_arena,
+                            count, jnp.zeros((n_players, bins, bins)))
     return counts / jnp.maximum(counts.sum((1, 2), keepdims=True), 1.0)
 
 
 def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int,
-                       bins: int = HEATMAP_BINS, weights=None) -> jax.Array:
+                       bins: int = HEATMAP_BINS, weights=None, games_per_arena: int = 1) -> jax.Array:
     """Per-player position occupancy over the games ``playtest`` would play with the same key.
 
-    Counts, at every decision (the reset state included) of every game still running, the cell
-    of each alive player on a ``bins x bins`` grid over the arena (GAME.md §11), without storing
-    traces, so 500 games x 2000 decisions cost no memory.
+    Counts, at every decision (the start state included) of every measured game still running,
+    the cell of each alive player on a ``bins x bins`` grid over the arena (GAME.md §11), without
+    storing traces, so 500 games x 2000 decisions cost no memory.
 
     Args:
-        key, params, policy, n_games, weights: as ``playtest``.
+        key, params, policy, n_games, weights, games_per_arena: as ``playtest``.
         bins: grid size, a whole number >= 1 (24 in the paper; static).
 
     Returns:
@@ -212,7 +283,8 @@ def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: 
         ValueError: as ``playtest``, or ``bins`` not a whole number >= 1.
     """
     n_games = check_args(params, n_games, policy, weights)
-    return _playtest_occupancy(key, params, policy, n_games, validate.whole_number("bins", bins, 1), weights)
+    k = check_games_per_arena(params, n_games, games_per_arena)
+    return _playtest_occupancy(key, params, policy, n_games, validate.whole_number("bins", bins, 1), k, weights)
 
 
 def win_rate(results: dict[str, jax.Array]) -> jax.Array:
@@ -236,4 +308,4 @@ def win_rate(results: dict[str, jax.Array]) -> jax.Array:
     return jnp.mean(outcome == 1)
 
 
-__all__ = ["playtest", "playtest_occupancy", "broadcast_params", "win_rate"]
+__all__ = ["playtest", "playtest_occupancy", "broadcast_params", "win_rate", "auto_games_per_arena"]

@@ -78,6 +78,42 @@ def test_per_group_params():
     assert r["outcome"].tolist() == [1, 1, 2, 2]  # game g uses content g // (N / G)
 
 
+def test_chained_arenas_play_their_own_content_in_a_row():
+    """Two arenas of 4 games each (``games_per_arena=4``): games 0-3 are arena 0's (the WIN content),
+    games 4-7 arena 1's (LOSS), every one recorded as it ended."""
+    r = jax.device_get(raidjax.playtest(jax.random.key(2), stack(WIN, LOSS), policies.heuristic, 8, games_per_arena=4))
+    assert r["outcome"].tolist() == [1] * 4 + [2] * 4
+    assert (r["length"] > 0).all() and (r["length"] < 200).all()
+    np.testing.assert_array_equal(r["deaths"], 3 - r["alive"].sum(-1))
+
+
+def test_chained_draws_each_last_the_whole_episode():
+    """One arena plays all four games; a draw content makes every one run to ``max_decisions``,
+    so a game is recorded only once it ended and the next starts afresh."""
+    r = jax.device_get(raidjax.playtest(jax.random.key(3), DRAW, policies.noop, 4, games_per_arena=4))
+    assert r["outcome"].tolist() == [3] * 4 and r["length"].tolist() == [200] * 4
+
+
+def test_chained_reference_games_match_single_games_in_distribution(ref_params):
+    """The reference content's games (range 5, PT-HR): the same invariants chained as one per arena."""
+    r = jax.device_get(raidjax.playtest(jax.random.key(4), ref_params, policies.heuristic, 16, games_per_arena=8))
+    assert set(r["outcome"].tolist()) <= {1, 2} and (r["dropped"] == 0).all()
+    np.testing.assert_array_equal(r["outcome"] == 2, r["deaths"] == 3)
+
+
+@pytest.mark.parametrize("k, why", [(0, "whole number >= 1"), (3, "does not divide the 4 games"),
+                                    (2.5, "whole number"), (True, "whole number")])
+def test_games_per_arena_is_checked_before_compiling(k, why):
+    with pytest.raises(ValueError, match="games_per_arena") as err:
+        raidjax.playtest(jax.random.key(0), stack(WIN, LOSS), policies.heuristic, 8, games_per_arena=k)
+    assert why.split()[0] in str(err.value)
+
+
+def test_auto_games_per_arena_divides():
+    from raidjax.playtest import auto_games_per_arena
+    assert [auto_games_per_arena(n) for n in (1000, 300, 8, 7, 1, 4096)] == [10, 10, 8, 7, 1, 8]
+
+
 # --- policies ------------------------------------------------------------------------------
 
 RANDOM = jax.jit(jax.vmap(policies.random, in_axes=(0, None, None, None)))

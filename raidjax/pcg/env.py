@@ -41,7 +41,7 @@ from flax import struct
 from raidjax import policies
 from raidjax.content import REFERENCE_PLAYERS, make_params
 from raidjax.pcg.space import PAPER_SPACE, Space, make_space
-from raidjax.playtest import check_args, playtest
+from raidjax.playtest import auto_games_per_arena, check_args, playtest
 from raidjax.types import WIN, Params
 
 PARAM_NAMES = ("range", "cool_time", "cast_time", "coefficient")
@@ -242,7 +242,8 @@ def play_outcomes(key: jax.Array, game: Params, skill: jax.Array, n_games: int, 
     """``tester`` (default PT-HR; with ``tester_weights`` as in ``PCGParams``) plays ``n_games`` games
     with ``skill`` (``float32[K]`` in ``space``); returns ``bool[n_games]`` wins (draws and losses
     are ``False``)."""
-    results = playtest(key, skill_params(game, skill, space), tester, n_games, weights=tester_weights)
+    results = playtest(key, skill_params(game, skill, space), tester, n_games, weights=tester_weights,
+                       games_per_arena=auto_games_per_arena(n_games))
     return results["outcome"] == WIN
 
 

@@ -1,0 +1,78 @@
+"""What one sub-step and one decision cost, as XLA counts them: bytes and flops per arena per
+sub-step, and the fusions, copies and loops of the compiled decision.
+
+The sub-step figures come from XLA's cost analysis of a program that runs exactly one sub-step
+(``raidjax.env.substep``, vmapped over ``--arenas`` arenas); they are divided by the arena count,
+never derived from the decision's program (XLA counts a loop body once, so a 5-sub-step decision
+"as counted" looks like one sub-step). On an accelerator the bytes bound the speed, so this
+CPU-only figure shows what a GPU will do. The decision's program is ``vmap(raidjax.step)``;
+its operation counts are read from the optimised HLO text.
+
+    python benchmarks/step_cost.py --arenas 4096 [--substeps 5|1] [--rules reference|clean]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+
+import jax
+import jax.numpy as jnp
+from env_throughput import arenas
+
+import raidjax
+from raidjax import combat
+from raidjax.env import substep
+from raidjax.types import TICKS_PER_DECISION
+from raidjax.utils import machine
+
+
+def cost(compiled) -> dict:
+    """XLA's ``{"bytes": ..., "flops": ...}`` for one call of a compiled program."""
+    c = compiled.cost_analysis()
+    c = c[0] if isinstance(c, list) else c
+    return {"bytes": float(c.get("bytes accessed", 0.0)), "flops": float(c.get("flops", 0.0))}
+
+
+def op_counts(hlo: str) -> dict:
+    """Fusions, copies, while loops and total instructions in optimised HLO text."""
+    ops = re.findall(r"^\s*(?:ROOT )?%\S+ = .*? ([\w-]+)\(", hlo, flags=re.M)
+    return {"instructions": len(ops), "fusions": ops.count("fusion"), "copies": ops.count("copy"),
+            "while_loops": ops.count("while"), "gathers": ops.count("gather"), "scatters": ops.count("scatter")}
+
+
+def main() -> None:
+    raidjax.use_recommended_xla_flags()
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--arenas", type=int, default=4096)
+    ap.add_argument("--rules", default="reference", choices=sorted(raidjax.RULE_SETS))
+    ap.add_argument("--substeps", type=int, default=5, choices=(1, 5))
+    args = ap.parse_args()
+
+    keys, state, batch = arenas(args.arenas, args.rules, args.substeps)
+    actions = jnp.full((args.arenas, state.pos.shape[1] - 1), raidjax.ACTION_HEURISTIC, jnp.int32)
+    n_ticks = TICKS_PER_DECISION // args.substeps
+
+    def one_substep(key, state, actions, params):
+        return substep(key, state, actions, params, combat.effect_table(params), n_ticks)
+
+    sub = jax.jit(jax.vmap(one_substep)).lower(keys, state, actions, batch).compile()
+    table = jax.jit(jax.vmap(combat.effect_table)).lower(batch).compile()
+    dec = jax.jit(jax.vmap(raidjax.step)).lower(keys, state, actions, batch).compile()
+    sub_cost, table_cost = cost(sub), cost(table)
+    n = args.arenas
+    state_bytes = sum(x.dtype.itemsize * x.size for x in jax.tree.leaves(state)) / n
+    print(json.dumps({
+        "benchmark": "step_cost", "machine": machine(), "arenas": n, "rules": args.rules,
+        "n_substeps": args.substeps, "state_bytes_per_arena": round(state_bytes),
+        # The sub-step program also builds the per-decision effect table; it is taken out.
+        "substep_bytes_per_arena": round((sub_cost["bytes"] - table_cost["bytes"]) / n),
+        "substep_flops_per_arena": round((sub_cost["flops"] - table_cost["flops"]) / n),
+        "decision_program": op_counts(dec.as_text()),
+        "substep_program": op_counts(sub.as_text()),
+    }))
+
+
+if __name__ == "__main__":
+    main()

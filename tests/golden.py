@@ -13,8 +13,9 @@ Per rule set (``"reference"``, ``"clean"``), one compiled program plays every ar
   uniformly inside their allowed ranges), one game each, PT-HR on the even ones and PT-RD on
   the odd ones.
 
-Under chaining rules (``EnvConfig.chains_episodes``) each arena plays a warm-up game and the
-recorded game is its ``next_episode``, as ``playtest`` measures. Recorded per game: ``outcome``,
+Episodes last at most ``MAX_DECISIONS`` decisions. Under chaining rules
+(``EnvConfig.chains_episodes``) each arena plays a warm-up game and the recorded game is its
+``next_episode``, as ``playtest`` measures. Recorded per game: ``outcome``,
 ``length``, final ``hp`` and ``damage_dealt`` per unit, ``dropped``.
 
 Regenerate (only for a change that is meant to change the game, with the reason in the commit):
@@ -40,6 +41,10 @@ GAMES_PER_CELL = 8
 N_FUZZ = 200
 SEED = 20261125
 RULES = ("reference", "clean")
+# Episodes end by 400 decisions (40 s): every reference-content game ends well before (the longest
+# of the calibration's 8 000 is under 170), so only random contents that would run longer are
+# draws; the test costs a fifth of full 2000-decision episodes.
+MAX_DECISIONS = 400
 FIELDS = ("outcome", "length", "hp", "damage_dealt", "dropped")
 
 
@@ -80,7 +85,7 @@ def fuzz_contents(n: int, config: raidjax.EnvConfig, seed: int = SEED) -> list[r
 def arenas(rules: str) -> tuple[raidjax.Params, np.ndarray]:
     """``(params batched [N], heuristic bool[N])``: every golden arena of a rule set and whether
     PT-HR (else PT-RD) plays it."""
-    config = raidjax.EnvConfig.from_rules(rules)
+    config = raidjax.EnvConfig.from_rules(rules, max_decisions=MAX_DECISIONS)
     ref = [raidjax.make_params(skill_range=r, config=config) for r in RANGES]
     contents, hr = [], []
     for p in ref:

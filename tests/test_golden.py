@@ -1,6 +1,7 @@
 """The golden games (``tests/golden.py``) replay bit for bit: outcome, length, final HP and damage
 per unit of 528 fixed-seed games (reference content at four ranges under PT-HR and PT-RD, and
-200 random contents; the ``"reference"`` and ``"clean"`` rules) equal the stored ones exactly.
+200 random contents; the ``"reference"`` and ``"clean"`` rules; episodes of at most 400 decisions)
+equal the stored ones exactly.
 
 An optimisation of the step that keeps array sizes and the order of floating-point operations
 must keep every value; one that changes float order is accepted only with the outcome agreement

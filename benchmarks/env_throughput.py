@@ -3,7 +3,7 @@
 Compiles ahead of time, times with ``block_until_ready`` and prints one JSON object with the
 machine, the batch size, compile seconds and environment decisions per second (one decision =
 every player acts once). Also times ``raidjax.playtest`` (PT-HR, reference content, range 9,
-games played to completion).
+games played to completion, ``--games-per-arena`` games in a row per arena).
 
     python benchmarks/env_throughput.py --arenas 4096 --steps 200
 """
@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 
 import raidjax
+from raidjax.playtest import auto_games_per_arena
 from raidjax.utils import machine
 
 
@@ -65,6 +66,8 @@ def main() -> None:
     ap.add_argument("--playtest-games", type=int, default=4096)
     ap.add_argument("--rules", default="reference", choices=sorted(raidjax.RULE_SETS))
     ap.add_argument("--substeps", type=int, default=5, choices=(1, 5))
+    ap.add_argument("--games-per-arena", type=int, default=None,
+                    help="playtest games each arena plays in a row (default: auto_games_per_arena, up to 10)")
     args = ap.parse_args()
 
     keys, state, batch = arenas(args.arenas, args.rules, args.substeps)
@@ -87,9 +90,11 @@ def main() -> None:
         times.append(time.perf_counter() - t0)
     best = min(times)
 
-    pt = jax.jit(raidjax.playtest, static_argnames=("policy", "n_games"))
+    k = args.games_per_arena or auto_games_per_arena(args.playtest_games)
+    pt = jax.jit(raidjax.playtest, static_argnames=("policy", "n_games", "games_per_arena"))
     t0 = time.perf_counter()
-    pt_compiled = pt.lower(jax.random.key(1), params, raidjax.policies.heuristic, args.playtest_games).compile()
+    pt_compiled = pt.lower(jax.random.key(1), params, raidjax.policies.heuristic, args.playtest_games,
+                           games_per_arena=k).compile()
     pt_compile_s = time.perf_counter() - t0
     jax.block_until_ready(pt_compiled(jax.random.key(1), params))
     t0 = time.perf_counter()
@@ -107,9 +112,9 @@ def main() -> None:
         "rollout_compile_s": round(compile_s, 2),
         "decisions_per_s": round(args.arenas * args.steps / best),
         "seconds_per_rollout": [round(t, 3) for t in times],
-        "playtest": {"policy": "heuristic", "skill_range": 9.0, "games": args.playtest_games,
+        "playtest": {"policy": "heuristic", "skill_range": 9.0, "games": args.playtest_games, "games_per_arena": k,
                      "compile_s": round(pt_compile_s, 2), "seconds": round(pt_s, 3),
-                     # Measured games; under chained rules each arena's warm-up game is in the time.
+                     # Measured games; under chained rules each arena's one warm-up game is in the time.
                      "games_per_s": round(args.playtest_games / pt_s),
                      "warm_up_game": params.config.chains_episodes,
                      "measured_decisions_per_s": round(float(res["length"].sum()) / pt_s),

@@ -41,9 +41,9 @@ def ref_params() -> raidjax.Params:
 # out whole files (``--dist loadfile``) in collection order, so starting the longest ones first
 # leaves no worker idle behind a long file at the end.
 SLOW_FIRST = ("test_balance.py", "test_faults_ppo.py", "test_benchmark1.py", "test_faults_mapoca.py",
-              "test_benchmark2.py", "test_pcg.py", "test_sharding.py", "test_playtest.py", "test_house.py",
-              "test_mapoca.py", "test_notebooks.py", "test_wrappers.py", "test_pcg_style.py", "test_protocols.py",
-              "test_rules.py", "test_validation.py", "test_cli.py")
+              "test_benchmark2.py", "test_golden.py", "test_pcg.py", "test_sharding.py", "test_playtest.py",
+              "test_house.py", "test_mapoca.py", "test_notebooks.py", "test_wrappers.py", "test_pcg_style.py",
+              "test_protocols.py", "test_rules.py", "test_validation.py", "test_cli.py")
 
 
 def pytest_collection_modifyitems(items):

@@ -1,11 +1,11 @@
 """Is the calibration table statistically the same two ways? A two-sided two-proportion z-test
 per cell (PT-HR and PT-RD at ranges 5 / 9 / 13 / 17) between two ways of playing the games.
 
-``--compare games-per-arena`` (default): one measured game per arena after its warm-up
-(``games_per_arena=1``) against the chained arenas raidjax measures with
-(``auto_games_per_arena``: up to 10 games in a row after one warm-up). Different keys, so the
-games differ; what must agree is each cell's win rate. Prints one JSON object with both tables,
-each cell's z and p-value and the wall-clock of both ways.
+One measured game per arena after its warm-up (``games_per_arena=1``) against the chained arenas
+raidjax measures with (``auto_games_per_arena``: up to 10 games in a row after one warm-up).
+Different keys (seeds ``--seed`` and ``--seed + 1``), so the games differ; what must agree is
+each cell's win rate. Prints one JSON object with each cell's two win rates, z and p-value, and
+the wall-clock of both ways.
 
     python benchmarks/calibration_equivalence.py --games 4096
 """
@@ -20,7 +20,7 @@ import time
 import raidjax
 from raidjax import calibrate
 from raidjax.playtest import auto_games_per_arena
-from raidjax.utils import machine
+from raidjax.utils import machine, run_cli, whole_number_arg
 
 
 def two_proportion(w1: float, w2: float, n1: int, n2: int) -> tuple[float, float]:
@@ -34,8 +34,8 @@ def two_proportion(w1: float, w2: float, n1: int, n2: int) -> tuple[float, float
 def main() -> None:
     raidjax.use_recommended_xla_flags()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--games", type=int, default=4096, help="games per cell, each way")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--games", type=whole_number_arg(1), default=4096, help="games per cell, each way")
+    ap.add_argument("--seed", type=whole_number_arg(0, 2**31 - 2), default=0)
     args = ap.parse_args()
     ways = {"one_game_per_arena": 1, "chained": None}
     tables, seconds = {}, {}
@@ -56,4 +56,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_cli(main)

@@ -16,18 +16,20 @@ import jax
 import numpy as np
 
 import raidjax
-from raidjax.utils import machine
+from raidjax.utils import machine, run_cli, whole_number_arg
 
 
 def main() -> None:
     raidjax.use_recommended_xla_flags()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ranges", type=float, nargs="+", default=[5.0, 13.0])
-    ap.add_argument("--arenas", type=int, default=256)
-    ap.add_argument("--games-per-arena", type=int, default=64)
-    ap.add_argument("--seed", type=int, default=12)
+    ap.add_argument("--arenas", type=whole_number_arg(1), default=256)
+    ap.add_argument("--games-per-arena", type=whole_number_arg(8), default=64, help="a multiple of 8 (blocks of 8)")
+    ap.add_argument("--seed", type=whole_number_arg(0), default=12)
     args = ap.parse_args()
     k = args.games_per_arena
+    if k % 8:
+        ap.error(f"--games-per-arena: value {k}; allowed: a multiple of 8 (positions are reported in blocks of 8)")
     for r in args.ranges:
         t0 = time.perf_counter()
         res = raidjax.playtest(jax.random.key(args.seed), raidjax.make_params(skill_range=r),
@@ -40,4 +42,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_cli(main)

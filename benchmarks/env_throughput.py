@@ -19,7 +19,7 @@ import jax.numpy as jnp
 
 import raidjax
 from raidjax.playtest import auto_games_per_arena
-from raidjax.utils import machine
+from raidjax.utils import machine, whole_number_arg
 
 
 def make_rollout(n_arenas: int, n_steps: int):
@@ -66,7 +66,7 @@ def main() -> None:
     ap.add_argument("--playtest-games", type=int, default=4096)
     ap.add_argument("--rules", default="reference", choices=sorted(raidjax.RULE_SETS))
     ap.add_argument("--substeps", type=int, default=5, choices=(1, 5))
-    ap.add_argument("--games-per-arena", type=int, default=None,
+    ap.add_argument("--games-per-arena", type=whole_number_arg(1), default=None,
                     help="playtest games each arena plays in a row (default: auto_games_per_arena, up to 10)")
     args = ap.parse_args()
 

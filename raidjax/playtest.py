@@ -92,6 +92,11 @@ def broadcast_params(params: Params, n_games: int) -> Params:
     return jax.tree.map(lambda x: jnp.repeat(x, n_games // params.team.shape[0], axis=0), params)
 
 
+def _where_arenas(mask: jax.Array, a, b):
+    """``a`` where ``mask`` (``bool[A, ...]``, the leading axes of every leaf) else ``b``, leaf by leaf."""
+    return jax.tree.map(lambda x, y: jnp.where(mask.reshape(mask.shape + (1,) * (x.ndim - mask.ndim)), x, y), a, b)
+
+
 def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, games_per_arena: int,
                 fold=None, acc=None):
     """Play ``games_per_arena`` measured games in a row in each of ``n_arenas`` arenas (``batch``:
@@ -127,16 +132,12 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, ga
         ended = active & (state.result != RUNNING)
         measured = ended & (played >= warm)
         slot = jax.nn.one_hot(played - warm, k, dtype=bool) & measured[:, None]  # [A, k]
-        summary = episode_summary(state)
-        summaries = jax.tree.map(
-            lambda buf, x: jnp.where(slot.reshape(slot.shape + (1,) * (x.ndim - 1)), x[:, None], buf),
-            summaries, summary)
+        summary = jax.tree.map(lambda x: x[:, None], episode_summary(state))  # [A, 1, ...]
+        summaries = _where_arenas(slot, summary, summaries)
         played = played + ended
         again = ended & (played < warm + k)
         obs_next, state_next = jax.vmap(next_episode)(keys[2 * n_arenas:], state, batch)
-        obs = jax.tree.map(lambda a, b: jnp.where(again.reshape((-1,) + (1,) * (a.ndim - 1)), a, b), obs_next, obs)
-        state = jax.tree.map(lambda a, b: jnp.where(again.reshape((-1,) + (1,) * (a.ndim - 1)), a, b),
-                             state_next, state)
+        obs, state = _where_arenas(again, (obs_next, state_next), (obs, state))
         return t + 1, obs, state, played, summaries, acc
 
     def running(carry):
@@ -145,12 +146,6 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, ga
 
     carry = jax.lax.while_loop(running, play, (jnp.int32(0), obs, state, played, summaries, acc))
     return carry[4], carry[5]
-
-
-def arena_params(params: Params, n_games: int, games_per_arena: int) -> Params:
-    """The content of each of ``n_games // games_per_arena`` arenas (``broadcast_params`` of
-    ``params`` over the arenas: arena ``a`` plays games ``a * games_per_arena`` onwards)."""
-    return broadcast_params(params, n_games // games_per_arena)
 
 
 def _flatten_games(summaries: dict[str, jax.Array]) -> dict[str, jax.Array]:
@@ -162,7 +157,7 @@ def _flatten_games(summaries: dict[str, jax.Array]) -> dict[str, jax.Array]:
 def _playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, games_per_arena: int,
               weights) -> dict[str, jax.Array]:
     n_arenas = n_games // games_per_arena
-    summaries, _ = _play_games(key, arena_params(params, n_games, games_per_arena), bind(policy, weights),
+    summaries, _ = _play_games(key, broadcast_params(params, n_games // games_per_arena), bind(policy, weights),
                                n_arenas, games_per_arena)
     return _flatten_games(summaries)
 
@@ -248,7 +243,7 @@ def check_games_per_arena(params: Params, n_games: int, games_per_arena) -> int:
 @partial(jax.jit, static_argnames=("policy", "n_games", "bins", "games_per_arena"))
 def _playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int, bins: int,
                         games_per_arena: int, weights) -> jax.Array:
-    batch = arena_params(params, n_games, games_per_arena)
+    batch = broadcast_params(params, n_games // games_per_arena)
     n_players = batch.team.shape[-1] - 1
 
     def count(counts, state, counted):

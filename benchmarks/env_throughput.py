@@ -46,10 +46,10 @@ def make_rollout(n_arenas: int, n_steps: int):
     return jax.vmap(one)
 
 
-def arenas(n_arenas: int, rules: str, n_substeps: int):
+def arenas(n_arenas: int, rules: str, n_substeps: int, observation: str = "raidjax"):
     """``(keys, state, params)`` of ``n_arenas`` fresh arenas, each with its own copy of the range-9
     reference content: keys ``[N]``, ``State`` and ``Params`` batched ``[N, ...]``."""
-    config = raidjax.EnvConfig.from_rules(rules, n_substeps=n_substeps)
+    config = raidjax.EnvConfig.from_rules(rules, n_substeps=n_substeps, observation=observation)
     params = raidjax.make_params(skill_range=9.0, config=config)
     batch = jax.tree.map(lambda x: jnp.broadcast_to(x, (n_arenas,) + x.shape), params)
     keys = jax.random.split(jax.random.key(0), n_arenas)

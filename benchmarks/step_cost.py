@@ -6,9 +6,11 @@ The sub-step figures come from XLA's cost analysis of a program that runs exactl
 never derived from the decision's program (XLA counts a loop body once, so a 5-sub-step decision
 "as counted" looks like one sub-step). On an accelerator the bytes bound the speed, so this
 CPU-only figure shows what a GPU will do. The decision's program is ``vmap(raidjax.step)``;
-its operation counts are read from the optimised HLO text.
+its operation counts are read from the optimised HLO text. The observation is built once per
+decision, outside the sub-steps: its own program (``vmap(raidjax.observe)``) is counted apart.
 
     python benchmarks/step_cost.py --arenas 4096 [--substeps 5|1] [--rules reference|clean]
+        [--observation raidjax|reference]
 """
 
 from __future__ import annotations
@@ -48,9 +50,10 @@ def main() -> None:
     ap.add_argument("--arenas", type=int, default=4096)
     ap.add_argument("--rules", default="reference", choices=sorted(raidjax.RULE_SETS))
     ap.add_argument("--substeps", type=int, default=5, choices=(1, 5))
+    ap.add_argument("--observation", default="raidjax", choices=("raidjax", "reference"))
     args = ap.parse_args()
 
-    keys, state, batch = arenas(args.arenas, args.rules, args.substeps)
+    keys, state, batch = arenas(args.arenas, args.rules, args.substeps, args.observation)
     actions = jnp.full((args.arenas, state.pos.shape[1] - 1), raidjax.ACTION_HEURISTIC, jnp.int32)
     n_ticks = TICKS_PER_DECISION // args.substeps
 
@@ -60,15 +63,19 @@ def main() -> None:
     sub = jax.jit(jax.vmap(one_substep)).lower(keys, state, actions, batch).compile()
     table = jax.jit(jax.vmap(combat.effect_table)).lower(batch).compile()
     dec = jax.jit(jax.vmap(raidjax.step)).lower(keys, state, actions, batch).compile()
-    sub_cost, table_cost = cost(sub), cost(table)
+    obs = jax.jit(jax.vmap(lambda s, p: raidjax.observe(s, p, combat.effect_table(p)))).lower(state, batch).compile()
+    sub_cost, table_cost, obs_cost = cost(sub), cost(table), cost(obs)
     n = args.arenas
     state_bytes = sum(x.dtype.itemsize * x.size for x in jax.tree.leaves(state)) / n
     print(json.dumps({
         "benchmark": "step_cost", "machine": machine(), "arenas": n, "rules": args.rules,
-        "n_substeps": args.substeps, "state_bytes_per_arena": round(state_bytes),
+        "n_substeps": args.substeps, "observation": args.observation, "state_bytes_per_arena": round(state_bytes),
         # The sub-step program also builds the per-decision effect table; it is taken out.
         "substep_bytes_per_arena": round((sub_cost["bytes"] - table_cost["bytes"]) / n),
         "substep_flops_per_arena": round((sub_cost["flops"] - table_cost["flops"]) / n),
+        # Once per decision: the observation of every player (table taken out as above).
+        "observation_bytes_per_arena": round((obs_cost["bytes"] - table_cost["bytes"]) / n),
+        "observation_flops_per_arena": round((obs_cost["flops"] - table_cost["flops"]) / n),
         "decision_program": op_counts(dec.as_text()),
         "substep_program": op_counts(sub.as_text()),
     }))

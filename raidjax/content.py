@@ -167,6 +167,8 @@ def make_params(
     boss_overrides: Mapping | None = None,
     config: EnvConfig | None = None,
     rules: str | None = None,
+    observation: str | None = None,
+    action_space: str | None = None,
     **overrides,
 ) -> Params:
     """Build and validate the content of one arena.
@@ -182,6 +184,10 @@ def make_params(
             default ``EnvConfig()``, the ``"reference"`` rules at 5 sub-steps.
         rules: a named rule set, ``"reference"`` (the game the paper measured) or ``"clean"``
             (the intended game); sets every rule switch of ``config``, keeping its other fields.
+        observation: ``"raidjax"`` or ``"reference"`` (the reference players' senses); sets
+            ``config.observation``.
+        action_space: ``"raidjax"`` or ``"reference"`` (the reference's 8 unmasked actions); sets
+            ``config.action_space``.
         **overrides: applied to every player: a stat name (``armor=50``), a skill parameter of
             slot k as ``**{"skill1.cool_time": 1.0}``, or ``skill2="heal"`` to put a skill preset in a slot.
 
@@ -203,6 +209,8 @@ def make_params(
     if skill_range is not None:
         skill_range = _number("skill_range", skill_range, SKILL_SPECS["range"], 0, "make_params")
     config = check_config(EnvConfig() if config is None else config, rules)
+    senses = {k: v for k, v in (("observation", observation), ("action_space", action_space)) if v is not None}
+    config = config.replace(**senses) if senses else config
     units = []
     for i, name in enumerate(names):
         stats, slots = _unit_dicts(name, catalogue.CLASSES, 0)

@@ -17,14 +17,15 @@ import jax.numpy as jnp
 
 from raidjax import combat, heuristic, movement
 from raidjax.observation import observe
+from raidjax.reference_observation import remember, start_memory
 from raidjax.types import (
     ACTION_HEURISTIC,
     DAMAGE_REWARD,
     DRAW,
     HALF_ARENA,
     LOSS,
-    N_ACTIONS,
     NOOP,
+    REFERENCE_ACTIONS,
     RUNNING,
     TICK,
     TICKS_PER_DECISION,
@@ -92,6 +93,8 @@ def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
         dropped=jnp.int32(0),
     )
     state = state.replace(target=state.target.at[n_players].set(movement.nearest_alive_player(state)))
+    if params.config.observation == "reference":
+        state = start_memory(state, params)
     return observe(state, params), state
 
 
@@ -187,9 +190,10 @@ def _select(pred, a, b):
 def check_actions(actions, params: Params) -> jax.Array:
     """``actions`` as ``int32[P]``, checked when traced (shapes and dtypes are static).
 
-    Ids outside ``[0, ACTION_HEURISTIC]`` are no-ops (``NOOP``), as are actions the player cannot
-    take now (``Observation.action_mask``: a cast on cooldown, an empty slot, a dead player):
-    values are data under ``jit`` and cannot raise.
+    Ids outside ``[0, A)`` (``A = config.n_actions``) other than ``ACTION_HEURISTIC`` are no-ops
+    (``NOOP``), as are actions the player cannot take now (a cast on cooldown, an empty slot, a
+    dead player): values are data under ``jit`` and cannot raise. Under the reference action
+    space, id k plays ``REFERENCE_ACTIONS[k]``.
 
     Raises:
         ValueError: ``actions`` not of shape ``[P]`` or not of an integer dtype (the message names
@@ -201,9 +205,13 @@ def check_actions(actions, params: Params) -> jax.Array:
         raise ValueError(f"actions: shape {list(actions.shape)}; allowed: [{n_players}], one action id per player "
                          "(vmap over arenas for a batch)")
     if not jnp.issubdtype(actions.dtype, jnp.integer):
-        raise ValueError(f"actions: dtype {actions.dtype}; allowed: an integer dtype (action ids 0..{N_ACTIONS - 1}, "
-                         f"or ACTION_HEURISTIC = {ACTION_HEURISTIC})")
+        raise ValueError(f"actions: dtype {actions.dtype}; allowed: an integer dtype (action ids "
+                         f"0..{params.config.n_actions - 1}, or ACTION_HEURISTIC = {ACTION_HEURISTIC})")
     actions = actions.astype(jnp.int32)
+    if params.config.action_space == "reference":
+        ours = jnp.asarray(REFERENCE_ACTIONS, jnp.int32)[jnp.clip(actions, 0, len(REFERENCE_ACTIONS) - 1)]
+        known = (actions >= 0) & (actions < len(REFERENCE_ACTIONS))
+        return jnp.where(known, ours, jnp.where(actions == ACTION_HEURISTIC, ACTION_HEURISTIC, NOOP))
     return jnp.where((actions < 0) | (actions > ACTION_HEURISTIC), NOOP, actions)
 
 
@@ -213,7 +221,7 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     Args:
         key: PRNG key (crits, dodges, parries).
         state: the arena's ``State``.
-        actions: ``int32[P]`` one action per player (``types`` action ids; ``ACTION_HEURISTIC``
+        actions: ``int32[P]`` one action per player (ids of ``config.action_space``; ``ACTION_HEURISTIC``
             hands the player to the built-in PT-HR script). Dead players' actions, masked actions
             and ids outside ``[0, ACTION_HEURISTIC]`` are no-ops (``check_actions``).
         params: the arena's ``Params``.
@@ -244,6 +252,8 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     decision = new.decision + 1
     result = jnp.where((new.result == RUNNING) & (decision >= params.config.max_decisions), DRAW, new.result)
     new = new.replace(decision=decision, result=jnp.int32(result))
+    if params.config.observation == "reference":
+        new = remember(new, params)
     new = _select(was_done, state, new)
     won = (new.result == WIN) & ~was_done
     reward = DAMAGE_REWARD * to_boss[:n_players] + WIN_REWARD * won
@@ -302,6 +312,8 @@ def next_episode(key: jax.Array, state: State, params: Params) -> tuple[Observat
         )
         # The boss's OnEpisodeBegin picks its target from where it stands.
         fresh = fresh.replace(target=fresh.target.at[b].set(movement.nearest_alive_player(fresh)))
+    if cfg.observation == "reference":  # the memory starts from the carried state
+        fresh = start_memory(fresh, params)
     return observe(fresh, params), fresh
 
 

@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 
 from raidjax.combat import F_SPEED, F_TEAM, effect_table, haste_factor, skill_targets, source_index, usable_slot
+from raidjax.reference_observation import ReferenceObservation, observe_reference
 from raidjax.types import CAST_1, HALF_ARENA, HIT_ATTACK, TRIGGER_PASSIVE, Observation, Params, State
 from raidjax.utils import pick
 
@@ -24,8 +25,11 @@ def skill_damage(params: Params) -> jnp.ndarray:
 
 
 def action_mask(state: State, params: Params) -> jnp.ndarray:
-    """``bool[P, N_ACTIONS]``: which actions do something now. Dead players may only no-op."""
+    """``bool[P, A]``, ``A = params.config.n_actions``: which actions do something now (dead players
+    may only no-op); all true under the reference action space, which masks nothing."""
     n_players = params.team.shape[0] - 1
+    if params.config.action_space == "reference":
+        return jnp.ones((n_players, params.config.n_actions), bool)
     alive = state.alive[:n_players]
     _, valid = skill_targets(state, params)
     casts = jnp.stack([usable_slot(state, params, valid, s) for s in range(state.casting.shape[1])], axis=-1)
@@ -35,7 +39,7 @@ def action_mask(state: State, params: Params) -> jnp.ndarray:
     return jnp.concatenate([move, casts[:n_players]], axis=-1)
 
 
-def observe(state: State, params: Params, table: jax.Array | None = None) -> Observation:
+def observe(state: State, params: Params, table: jax.Array | None = None) -> Observation | ReferenceObservation:
     """Build every player's observation.
 
     Args:
@@ -44,10 +48,13 @@ def observe(state: State, params: Params, table: jax.Array | None = None) -> Obs
         table: ``combat.effect_table(params)`` if already computed (saves work inside ``step``).
 
     Returns:
-        ``Observation`` with a leading player axis ``P`` (shapes in ``types.Observation``).
+        ``Observation`` with a leading player axis ``P`` (shapes in ``types.Observation``), or under
+        ``config.observation = "reference"`` a ``ReferenceObservation`` (``raidjax.reference_observation``).
     """
-    st, sk = params.stats, params.skills
     table = effect_table(params) if table is None else table
+    if params.config.observation == "reference":
+        return observe_reference(state, params, table, action_mask(state, params))
+    st, sk = params.stats, params.skills
     n_players = params.team.shape[0] - 1
     b = n_players
     pos, vel = state.pos / POS_SCALE, state.vel / POS_SCALE

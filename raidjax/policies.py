@@ -15,7 +15,7 @@ from raidjax.utils import uniform_dice
 def random(key: jax.Array, obs: Observation, state: State, params: Params) -> jax.Array:
     """PT-RD: a uniformly random action per player among the 7 movement actions and the cast
     actions of the active skill slots it has (0–7 for the reference mage), ignoring whether
-    the cast is usable now.
+    the cast is usable now. Under the reference action space: its 7 movement ids and its cast.
 
     Returns:
         ``int32[P]`` actions.
@@ -23,6 +23,8 @@ def random(key: jax.Array, obs: Observation, state: State, params: Params) -> ja
     n_players = params.team.shape[0] - 1
     sk = params.skills
     has = (sk.in_use[:n_players] > 0) & (sk.trigger[:n_players] != TRIGGER_PASSIVE)  # [P, S]
+    if params.config.action_space == "reference":
+        has = has[:, :1]  # the reference's one cast action (slot 0)
     allowed = jnp.concatenate([jnp.ones((n_players, CAST_1), bool), has], axis=-1)
     # Inverse-CDF sampling with the cheap counter-hash dice (threefry costs more than a step).
     u = uniform_dice(key, (n_players,))

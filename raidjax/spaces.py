@@ -1,7 +1,7 @@
 """Sizes and spaces of an arena, for learners written elsewhere (gymnax-style ``Discrete``/``Box``).
 
     sp = raidjax.spaces(params)
-    sp.n_players, sp.n_actions          # 3, 10
+    sp.n_players, sp.n_actions          # 3, 10 (8 under action_space="reference")
     sp.action.sample(key)               # int32[] one player's action
     sp.observation["boss"].shape        # (3, 11): every field with its leading player axis
     sp.flat_observation.shape           # (3, D): Observation.flat()
@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from raidjax.types import ACTION_HEURISTIC, N_ACTIONS, Params
+from raidjax.types import ACTION_HEURISTIC, Params
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,12 +63,15 @@ class Spaces:
 
     Attributes:
         n_players: ``P``, players per arena (the agents).
-        n_actions: ``N_ACTIONS`` (10) learner actions per player; ``ACTION_HEURISTIC`` (10) is
-            the extra id that hands a player to the PT-HR script.
-        action: ``Discrete(N_ACTIONS)``, one player's action; ``step`` takes ``int32[P]``.
-        observation: ``Box`` per ``Observation`` field, each with the leading player axis ``P``
-            (features unbounded, masks in {0, 1}).
-        flat_observation: ``Box`` of ``Observation.flat()``, ``float32[P, D]``.
+        n_actions: learner actions per player, ``config.n_actions``: ``N_ACTIONS`` (10) or 8 under
+            the reference action space; ``ACTION_HEURISTIC`` (10) is the extra id that hands a
+            player to the PT-HR script.
+        action: ``Discrete(n_actions)``, one player's action; ``step`` takes ``int32[P]``.
+        observation: ``Box`` per field of the observation (``Observation`` or, under
+            ``observation="reference"``, ``ReferenceObservation``), each with the leading player
+            axis ``P`` (features unbounded, masks in {0, 1}).
+        flat_observation: ``Box`` of the observation's ``flat()``, ``float32[P, D]`` (D = 204 for
+            the reference observation).
     """
 
     n_players: int
@@ -100,5 +103,6 @@ def spaces(params: Params) -> Spaces:
         is_mask = leaf.dtype == jnp.bool_
         boxes[f.name] = Box(0.0 if is_mask else -np.inf, 1.0 if is_mask else np.inf, tuple(leaf.shape), leaf.dtype)
     flat = jax.eval_shape(lambda o: o.flat(), obs)
-    return Spaces(n_players=int(params.team.shape[0]) - 1, n_actions=N_ACTIONS, action=Discrete(N_ACTIONS),
+    n_actions = params.config.n_actions
+    return Spaces(n_players=int(params.team.shape[0]) - 1, n_actions=n_actions, action=Discrete(n_actions),
                   observation=boxes, flat_observation=Box(-np.inf, np.inf, tuple(flat.shape), flat.dtype))

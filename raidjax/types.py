@@ -32,6 +32,15 @@ N_ACTIONS = CAST_1 + N_SLOTS  # 10; slots not in use are masked
 # decision. It moves by setting positions, which no learner action can express.
 ACTION_HEURISTIC = N_ACTIONS
 
+# The reference player's action space (``EnvConfig(action_space="reference")``): one branch of 8,
+# no mask (RaidPlayerAgent.cs, GAME.md §4). Reference id k plays raidjax action REFERENCE_ACTIONS[k]:
+# the reference's 3 turns clockwise seen from above (right) and 4 anticlockwise, the reverse of ours.
+REFERENCE_ACTIONS = (NOOP, FORWARD, BACKWARD, ROTATE_RIGHT, ROTATE_LEFT, STRAFE_LEFT, STRAFE_RIGHT, CAST_1)
+# What players observe (``EnvConfig.observation``) and how they act (``EnvConfig.action_space``):
+# raidjax's own (the default) or the reference build's (GAME.md §8).
+OBSERVATIONS = ("raidjax", "reference")
+ACTION_SPACES = ("raidjax", "reference")
+
 # Outcomes (``State.result`` / ``info["result"]``).
 RUNNING, WIN, LOSS, DRAW = 0, 1, 2, 3
 
@@ -85,13 +94,18 @@ class EnvConfig:
         random_spawns: every episode draws each unit's position and heading (players in the
             arena's lower half, the boss in its upper half, inside the walls; headings uniform)
             instead of the fixed spawn; off in both rule sets (the reference spawns are fixed).
+        observation: ``"raidjax"`` (``Observation``, the default) or ``"reference"``
+            (``ReferenceObservation``: the reference players' rays, teammate buffer and stacked
+            vector, 204 floats); not a rule switch: it changes what players see, not the game.
+        action_space: ``"raidjax"`` (``N_ACTIONS`` = 10 ids with an action mask, the default) or
+            ``"reference"`` (8 ids, ``REFERENCE_ACTIONS``, an all-true mask: the reference masks nothing).
 
     Raises:
         ValueError: on construction (``EnvConfig(...)``, ``replace``, ``from_rules``), one line naming
             the field, the value and what is allowed: ``n_substeps`` not 1 or 5; a pool size or
             ``max_decisions`` not a whole number >= 1 (``int`` or numpy integer; no ``float``,
             ``str`` or ``bool``); ``obs_projectiles > max_projectiles``; a rule switch not a
-            ``bool``; an unknown field name.
+            ``bool``; ``observation`` or ``action_space`` not one of their names; an unknown field name.
     """
 
     # Every field is static (``pytree_node=False``): an ``EnvConfig`` has no leaves, so tree maps
@@ -107,6 +121,8 @@ class EnvConfig:
     unity_timers: bool = struct.field(pytree_node=False, default=True)
     ties_are_losses: bool = struct.field(pytree_node=False, default=True)
     random_spawns: bool = struct.field(pytree_node=False, default=False)
+    observation: str = struct.field(pytree_node=False, default="raidjax")
+    action_space: str = struct.field(pytree_node=False, default="raidjax")
 
     def __post_init__(self):
         """Validate every field on construction (``EnvConfig(...)``, ``replace``, ``from_rules``),
@@ -126,6 +142,8 @@ class EnvConfig:
                              f"{fixed['max_projectiles']}; allowed: a whole number in [1, max_projectiles]")
         for name in (*RULE_SWITCHES, "random_spawns"):
             fixed[name] = validate.flag(name, getattr(self, name))
+        validate.name("observation", self.observation, OBSERVATIONS, "observation")
+        validate.name("action_space", self.action_space, ACTION_SPACES, "action space")
         for name, value in fixed.items():  # frozen: set through object (hash and == see Python values)
             object.__setattr__(self, name, value)
 
@@ -152,6 +170,11 @@ class EnvConfig:
         """``"reference"``, ``"clean"`` or ``"custom"`` (any other mix of switches)."""
         mine = {k: getattr(self, k) for k in RULE_SWITCHES}
         return next((name for name, preset in RULE_SETS.items() if preset == mine), "custom")
+
+    @property
+    def n_actions(self) -> int:
+        """Learner action ids per player: 10 (``"raidjax"``) or 8 (``"reference"``)."""
+        return N_ACTIONS if self.action_space == "raidjax" else len(REFERENCE_ACTIONS)
 
     @property
     def chains_episodes(self) -> bool:
@@ -298,6 +321,9 @@ class State:
     damage_dealt: jax.Array  # damage each unit's hits dealt to enemies
     back_attacks: jax.Array  # int32[U] back attacks landed
     dropped: jax.Array  # int32[] projectiles dropped because the pool was full
+    # What the reference observation remembers between decisions (``reference_observation.Memory``);
+    # None under raidjax's own observation, so the default state carries nothing for it.
+    memory: object = None
 
 
 @struct.dataclass

@@ -107,6 +107,23 @@ def test_gymnax_views_shapes_spaces_and_rewards():
         gymnax_env.RaidPlayerEnv(ONE_CAST_WINS, player=3)
 
 
+def test_jaxmarl_actions_of_shape_one_and_the_reference_spaces():
+    env = jaxmarl_env.RaidMultiAgentEnv(ONE_CAST_WINS)
+    _, state = env.reset(jax.random.key(0))
+    as_scalar = env.step(jax.random.key(1), state, dict.fromkeys(env.agents, jnp.int32(CAST_1)))
+    as_one = env.step(jax.random.key(1), state, dict.fromkeys(env.agents, jnp.array([CAST_1])))
+    for a, b in zip(jax.tree.leaves(as_scalar), jax.tree.leaves(as_one), strict=True):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match=r"^actions\['player_0'\]: shape \[2\]; allowed: \[\] or \[1\]"):
+        env.step_env(jax.random.key(1), state, dict.fromkeys(env.agents, jnp.array([CAST_1, 0])))
+    ref = jaxmarl_env.RaidMultiAgentEnv(raidjax.make_params(observation="reference", action_space="reference"))
+    obs, state = ref.reset(jax.random.key(0))
+    assert ref.action_space("player_0").n == 8 and obs["player_1"].shape == (204,) and ref.obs_dim == 204
+    assert ref.get_avail_actions(state)["player_2"].shape == (8,)
+    team = gymnax_env.RaidTeamEnv(raidjax.make_params(action_space="reference"))
+    assert team.num_actions == 8**3 and team.decode(jnp.int32(7 + 8 * 3)).tolist() == [7, 3, 0]
+
+
 # ---------------------------------------------------------------- a few PPO updates through each
 class Net(flax_nn.Module):
     @flax_nn.compact
@@ -184,7 +201,8 @@ def test_ippo_through_the_jaxmarl_wrapper_learns_to_cast():
         return batchify(obs), state
 
     def step(keys, state, actions):
-        acts = actions.reshape(env.num_agents, -1)
+        # JaxMARL's unbatchify (baselines/IPPO/ippo_ff_mpe.py) hands every agent int[1] per env.
+        acts = actions.reshape(env.num_agents, -1, 1)
         per_agent = {a: acts[i] for i, a in enumerate(env.agents)}
         obs, state, rewards, dones, infos = jax.vmap(env.step)(keys, state, per_agent)
         assert infos["returned_episode_returns"].shape == (keys.shape[0], env.num_agents)  # reshapes to NUM_ACTORS

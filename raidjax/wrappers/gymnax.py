@@ -2,13 +2,14 @@
 
 Two views of one arena; the content is gymnax's ``params`` argument (a ``raidjax.Params``):
 
-* ``RaidTeamEnv``: one learner plays the whole team. An action is one of ``N_ACTIONS ** P``
-  joint ids (player ``i``'s action is digit ``i`` in base ``N_ACTIONS``, player 0 the lowest);
+* ``RaidTeamEnv``: one learner plays the whole team. An action is one of ``A ** P`` joint ids
+  (``A = config.n_actions``: 10, or 8 under the reference action space; player ``i``'s action is
+  digit ``i`` in base ``A``, player 0 the lowest);
   the observation is every player's ``Observation.flat()`` row concatenated, ``float32[P * D]``;
   the reward is the team's, ``0.01 x`` its damage to the boss ``+ 1.0`` on a win.
 * ``RaidPlayerEnv``: the learner plays player ``player``; its teammates follow ``teammates``, a
   ``policy(key, obs, state, params) -> int32[P]`` (default PT-HR, ``raidjax.policies.heuristic``).
-  Observation ``float32[D]`` (its row), ``N_ACTIONS`` actions, its own ``raidjax.step`` reward.
+  Observation ``float32[D]`` (its row), ``A`` actions, its own ``raidjax.step`` reward.
 
     import jax, raidjax
     from raidjax.wrappers.gymnax import RaidPlayerEnv
@@ -40,7 +41,7 @@ from raidjax.content import make_params
 from raidjax.env import check_actions
 from raidjax.observation import observe
 from raidjax.spaces import spaces
-from raidjax.types import DAMAGE_REWARD, DRAW, LOSS, N_ACTIONS, WIN, WIN_REWARD, Observation, Params
+from raidjax.types import DAMAGE_REWARD, DRAW, LOSS, WIN, WIN_REWARD, Observation, Params
 from raidjax.wrappers.common import ArenaState, advance, start
 
 
@@ -120,7 +121,7 @@ class RaidTeamEnv(_RaidView):
 
     @property
     def num_actions(self) -> int:
-        return N_ACTIONS**self.n_players
+        return self.default_params.config.n_actions**self.n_players
 
     def action_space(self, params: Params | None = None) -> gspaces.Discrete:
         return gspaces.Discrete(self.num_actions)
@@ -130,7 +131,8 @@ class RaidTeamEnv(_RaidView):
 
     def decode(self, action: jax.Array) -> jax.Array:
         """Joint id ``int[]`` -> ``int32[P]`` per-player actions (player 0 the lowest digit)."""
-        return (action // N_ACTIONS ** jnp.arange(self.n_players)) % N_ACTIONS
+        a = self.default_params.config.n_actions
+        return (action // a ** jnp.arange(self.n_players)) % a
 
     def _observation(self, obs: Observation) -> jax.Array:
         return obs.flat().reshape(-1)
@@ -163,10 +165,10 @@ class RaidPlayerEnv(_RaidView):
 
     @property
     def num_actions(self) -> int:
-        return N_ACTIONS
+        return self.default_params.config.n_actions
 
     def action_space(self, params: Params | None = None) -> gspaces.Discrete:
-        return gspaces.Discrete(N_ACTIONS)
+        return gspaces.Discrete(self.num_actions)
 
     def observation_space(self, params: Params | None = None) -> gspaces.Box:
         return gspaces.Box(-jnp.inf, jnp.inf, (self.obs_dim,), jnp.float32)

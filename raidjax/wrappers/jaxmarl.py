@@ -8,9 +8,11 @@
     actions = {a: env.action_space(a).sample(k) for a, k in zip(env.agents, jax.random.split(key, 3))}
     obs, state, rewards, dones, infos = env.step(jax.random.key(1), state, actions)
 
-Agents are ``player_0 .. player_{P-1}``. Each observes its row of ``Observation.flat()``
-(``float32[D]``, its action mask included) and takes one of ``N_ACTIONS`` discrete actions;
-``get_avail_actions`` gives the masks. ``rewards[a]`` is ``raidjax.step``'s per-player reward.
+Agents are ``player_0 .. player_{P-1}``. Each observes its row of the observation's ``flat()``
+(``float32[D]``: raidjax's observation with its action mask, or the reference's 204 floats) and
+takes one of ``A = config.n_actions`` discrete actions, as an ``int[]`` or, as JaxMARL's
+baselines hand them, an ``int[1]``; ``get_avail_actions`` gives the masks. ``rewards[a]`` is
+``raidjax.step``'s per-player reward.
 ``dones[a]`` is true once player ``a`` is dead or the episode ended; ``dones["__all__"]`` when
 the episode ended. Every ``infos`` value has one entry per agent (``float32``/``bool``/``int32[P]``,
 the layout JaxMARL's learners reshape to ``NUM_ACTORS``): ``terminated``, ``truncated``,
@@ -35,7 +37,7 @@ from raidjax.content import make_params
 from raidjax.env import check_actions
 from raidjax.observation import action_mask, observe
 from raidjax.spaces import spaces
-from raidjax.types import N_ACTIONS, RUNNING, Params
+from raidjax.types import RUNNING, Params
 from raidjax.wrappers.common import ArenaState, advance, start
 
 
@@ -55,7 +57,7 @@ class RaidMultiAgentEnv(MultiAgentEnv):
         self.agents = [f"player_{i}" for i in range(sp.n_players)]
         self.obs_dim = sp.flat_observation.shape[-1]
         self.observation_spaces = {a: Box(-jnp.inf, jnp.inf, (self.obs_dim,)) for a in self.agents}
-        self.action_spaces = {a: Discrete(N_ACTIONS) for a in self.agents}
+        self.action_spaces = {a: Discrete(sp.n_actions) for a in self.agents}
 
     def _split(self, x) -> dict:
         return {a: x[i] for i, a in enumerate(self.agents)}
@@ -80,7 +82,7 @@ class RaidMultiAgentEnv(MultiAgentEnv):
 
     def step_env(self, key: jax.Array, state: ArenaState, actions: dict):
         """One decision with the auto-reset to the arena's next episode built in."""
-        acts = check_actions(jnp.stack([jnp.asarray(actions[a]) for a in self.agents]), state.params)
+        acts = check_actions(jnp.stack([self._agent_action(actions, a) for a in self.agents]), state.params)
         obs, new, reward, terminated, truncated, info, _ = advance(key, state, acts)
         ended = terminated | truncated
         n = self.num_agents
@@ -94,12 +96,29 @@ class RaidMultiAgentEnv(MultiAgentEnv):
         dones["__all__"] = ended
         return self._split(obs.flat()), new, self._split(reward), dones, infos
 
+    @staticmethod
+    def _agent_action(actions: dict, agent: str) -> jax.Array:
+        """Agent ``agent``'s action as ``int[]``: JaxMARL's baselines hand ``[1]``, others ``[]``.
+
+        Raises:
+            ValueError: a missing agent, or a shape other than ``[]`` or ``[1]`` (one line).
+        """
+        if agent not in actions:
+            raise ValueError(f"actions: no entry for agent {agent!r}; allowed: a dict with one action per agent")
+        x = jnp.asarray(actions[agent])
+        if x.shape == (1,):
+            return x[0]
+        if x.shape != ():
+            raise ValueError(f"actions[{agent!r}]: shape {list(x.shape)}; allowed: [] or [1] (one action id)")
+        return x
+
     def get_obs(self, state: ArenaState) -> dict:
         """Every agent's ``float32[D]`` observation of ``state``."""
         return self._split(observe(state.game, state.params).flat())
 
     def get_avail_actions(self, state: ArenaState) -> dict:
-        """Every agent's ``bool[N_ACTIONS]`` action mask (dead players: no-op only)."""
+        """Every agent's ``bool[A]`` action mask (dead players: no-op only; all true under the
+        reference action space)."""
         return self._split(action_mask(state.game, state.params))
 
     def episode_running(self, state: ArenaState) -> jax.Array:

@@ -59,15 +59,17 @@ MIXED_TEAM = ("warrior", "mage", "priest")  # raidjax's mixed-team row (not in t
 
 @dataclasses.dataclass(frozen=True)
 class Protocol:
-    """How the robustness runs train. ``train_content``: content kind of MA-POCA1..4 and the
-    populations (``"reference"``: cool time 0.5; ``"test"``: 1.0); ``redraw_every``: episodes of
-    an arena per range draw (``trainers.config.Config.redraw_every``)."""
+    """How the runs play and the robustness runs train. ``train_content``: content kind of
+    MA-POCA1..4 and the populations (``"reference"``: cool time 0.5; ``"test"``: 1.0);
+    ``redraw_every``: episodes of an arena per range draw (``trainers.config.Config.redraw_every``);
+    ``senses``: every team's observation and action space (``Config.senses``), trained and tested."""
 
     train_content: str
     redraw_every: int
+    senses: str
 
 
-PROTOCOLS = {"paper": Protocol("reference", 2), "raidjax": Protocol("test", 1)}
+PROTOCOLS = {"paper": Protocol("reference", 2, "reference"), "raidjax": Protocol("test", 1, "raidjax")}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -106,8 +108,9 @@ SCALES = {
 
 def config_of(scale: Scale, protocol: str = "paper") -> Config:
     """The trainer ``Config`` of a scale under a protocol (``PROTOCOLS`` key)."""
-    return PRESETS[scale.preset].replace(total_steps=scale.total_steps, eval_games=0,
-                                         redraw_every=PROTOCOLS[protocol].redraw_every, **dict(scale.trainer))
+    pr = PROTOCOLS[protocol]
+    return PRESETS[scale.preset].replace(total_steps=scale.total_steps, eval_games=0, redraw_every=pr.redraw_every,
+                                         senses=pr.senses, **dict(scale.trainer))
 
 
 def content_of(kind: str, skill_range: float = 5.0) -> raidjax.Params:
@@ -210,24 +213,24 @@ def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chu
             "train_seconds": train_s, "decisions_per_s": cfg.num_chunks * per_chunk * len(runs) / max(train_s, 1e-9)}
 
 
-def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int):
-    """``(actor module, actor weights with a leading run axis)`` from the final checkpoint (an
-    older one would be a less trained team: no fallback here)."""
-    cfg = config_of(scale)  # the protocol changes no shape
+def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str):
+    """``(actor module, actor weights with a leading run axis, senses)`` from the final checkpoint
+    (an older one would be a less trained team: no fallback here)."""
+    cfg = config_of(scale, protocol)  # the senses fix the network's shapes
     trainer = make_trainer(cfg, redraw_ranges=True)
     abstract = jax.eval_shape(jax.vmap(trainer.init), *_run_inputs(runs, base_seed))
     final = rf.path("checkpoints", "mapoca", str(cfg.num_chunks * cfg.updates_per_chunk))
     runner, _, _ = checkpoint.restore(final, abstract)
-    return trainer.actor, runner.params["actor"]
+    return trainer.actor, runner.params["actor"], cfg.senses
 
 
-def per_team(key, actor, weights, contents, measure) -> jax.Array:
+def per_team(key, actor, weights, contents, measure, senses: str = "raidjax") -> jax.Array:
     """``measure(key, content, policy)`` of C (team, content) cells, vmapped in one program.
 
     Args:
         key: PRNG key (split into one key per cell).
         actor: the actor module; weights: its parameters with a leading axis C.
-        contents: ``Params`` with a leading axis C.
+        contents: ``Params`` with a leading axis C, played with the teams' ``senses``.
         measure: e.g. ``lambda k, c, p: raidjax.playtest(k, c, p, n)["outcome"]``.
 
     Returns:
@@ -238,7 +241,7 @@ def per_team(key, actor, weights, contents, measure) -> jax.Array:
         def policy(kk, obs, state, params):
             return sample_actions(kk, actor.apply(w, obs), obs.alive)[0]
 
-        return measure(k, content, policy)
+        return measure(k, raidjax.with_senses(content, senses), policy)
 
     keys = jax.random.split(key, jax.tree.leaves(contents)[0].shape[0])
     return jax.jit(jax.vmap(one))(keys, weights, contents)
@@ -258,9 +261,9 @@ def eval_cells(runs: list[dict]) -> list[tuple[int, str, float, int]]:
     return cells
 
 
-def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> dict:
+def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str = "paper") -> dict:
     """Win rates of every cell; returns ``{"cells": [...]}`` (one dict per cell)."""
-    actor, weights = load_actors(rf, scale, runs, base_seed)
+    actor, weights, senses = load_actors(rf, scale, runs, base_seed, protocol)
     cells = eval_cells(runs)
     chained = auto_games_per_arena(scale.games)  # each arena plays up to 10 games in a row
     contents = _stack([content_of(k, rg) for _, k, rg, _ in cells])
@@ -268,7 +271,7 @@ def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> d
     t = time.perf_counter()
     out = np.asarray(per_team(jax.random.PRNGKey(base_seed + 777), actor, w, contents,
                               lambda k, c, p: raidjax.playtest(k, c, p, scale.games,
-                                                               games_per_arena=chained)["outcome"]))
+                                                               games_per_arena=chained)["outcome"], senses))
     rf.log(f"evaluate: {len(cells)} team cells x {scale.games} games in {time.perf_counter() - t:.0f}s")
     rows = [{"agent": runs[i]["name"].split("/")[1] if runs[i]["group"] == "robust" else "MA-POCA",
              "group": runs[i]["group"], "run": runs[i]["name"], "seed": s, "content": kind, "range": rg,
@@ -292,10 +295,10 @@ def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> d
     return {"cells": rows}
 
 
-def heatmaps(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> dict:
+def heatmaps(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str = "paper") -> dict:
     """Occupancy maps of MA-POCA1 and MA-POCA3 (seed 0) over ``heatmap_ranges`` (test content);
     saved as ``heatmaps.npz`` (``[agent, range, player, 24, 24]``)."""
-    actor, weights = load_actors(rf, scale, runs, base_seed)
+    actor, weights, senses = load_actors(rf, scale, runs, base_seed, protocol)
     agents = ("MA-POCA1", "MA-POCA3")
     idx = [next(i for i, r in enumerate(runs) if r["name"] == f"robust/{a}" and r["seed"] == 0) for a in agents]
     grid = [(i, rg) for i in idx for rg in scale.heatmap_ranges]
@@ -304,7 +307,7 @@ def heatmaps(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int) -> d
     maps = np.asarray(per_team(jax.random.PRNGKey(base_seed + 555), actor, w, contents,
                                lambda k, c, p: raidjax.playtest_occupancy(
                                   k, c, p, scale.heatmap_games,
-                                  games_per_arena=auto_games_per_arena(scale.heatmap_games))))
+                                  games_per_arena=auto_games_per_arena(scale.heatmap_games)), senses))
     maps = maps.reshape(len(agents), len(scale.heatmap_ranges), *maps.shape[1:])
     buf = io.BytesIO()
     np.savez(buf, maps=maps, agents=np.asarray(agents), ranges=np.asarray(scale.heatmap_ranges))
@@ -322,8 +325,9 @@ def main(argv=None) -> dict:
                     "is left as it is)")
     ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
     ap.add_argument("--protocol", choices=sorted(PROTOCOLS), default="paper",
-                    help="paper: train MA-POCA1..4 and populations at cool time 0.5, range redrawn every second "
-                    "episode; raidjax: train at the test content (cool time 1.0), range redrawn every episode")
+                    help="paper: the reference player's observation and 8 actions; MA-POCA1..4 and populations "
+                    "train at cool time 0.5, range redrawn every second episode; raidjax: raidjax's observation "
+                    "and 10 masked actions, training at the test content (cool time 1.0), range redrawn every episode")
     ap.add_argument("--max-chunks", type=whole_number_arg(1),
                     help="stop training after this many chunks, to resume later (default: no limit)")
     args = ap.parse_args(argv)
@@ -342,8 +346,8 @@ def main(argv=None) -> dict:
     except Interrupted as e:
         rf.log(str(e))
         return {"interrupted": True}
-    ev = rf.stage("evaluate", lambda: evaluate(rf, scale, runs, args.seed))
-    rf.stage("heatmaps", lambda: heatmaps(rf, scale, runs, args.seed))
+    ev = rf.stage("evaluate", lambda: evaluate(rf, scale, runs, args.seed, args.protocol))
+    rf.stage("heatmaps", lambda: heatmaps(rf, scale, runs, args.seed, args.protocol))
     summary = rf.stage("report", lambda: b1_report.report(rf, ev["cells"], timing))
     return rf.finish({"benchmark": 1, "scale": args.scale, "protocol": args.protocol, **summary, "train": timing})
 

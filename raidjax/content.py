@@ -291,6 +291,20 @@ def with_player_skill(params: Params, slot: int = 0, **fields) -> Params:
     return params.replace(skills=sk.replace(**new))
 
 
+def with_senses(params: Params, senses: str) -> Params:
+    """``params`` whose players observe and act as ``senses`` names: ``"raidjax"`` (raidjax's
+    observation and 10 masked actions) or ``"reference"`` (the reference player's observation and
+    its 8 actions). Only the static ``config`` changes; works on batched and traced params.
+
+    Raises:
+        ValueError: ``senses`` not one of those names (one line).
+    """
+    validate.name("senses", senses, ("raidjax", "reference"), "observation and action space")
+    if params.config.observation == senses and params.config.action_space == senses:
+        return params
+    return params.replace(config=params.config.replace(observation=senses, action_space=senses))
+
+
 def default_params() -> Params:
     """The reference content (three mages with MagicMissile, range 5, against the Dragon).
 

@@ -15,6 +15,7 @@ import jax
 import jax.numpy as jnp
 
 from raidjax import validate
+from raidjax.content import with_senses
 from raidjax.env import next_episode, reset, step
 from raidjax.logs import HEATMAP_BINS, episode_summary, grid_cell
 from raidjax.sharding import shard_batch
@@ -30,6 +31,15 @@ def bind(policy: Policy, weights):
     if weights is None:
         return policy
     return lambda key, obs, state, params: policy(weights, key, obs, state, params)
+
+
+def sensed_by(params: Params, policy: Policy) -> Params:
+    """``params`` played with the senses ``policy`` declares: a policy object with a ``senses``
+    attribute (``"raidjax"`` or ``"reference"``, e.g. a trained ``trainers.mapoca.TeamPolicy``)
+    observes and acts that way whatever the content's config says (``raidjax.with_senses``);
+    other policies play the content as it is."""
+    senses = getattr(policy, "senses", None)
+    return params if senses is None else with_senses(params, senses)
 
 
 def check_args(params: Params, n_games, policy: Policy | None = None, weights=None) -> int:
@@ -157,6 +167,7 @@ def _flatten_games(summaries: dict[str, jax.Array]) -> dict[str, jax.Array]:
 def _playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, games_per_arena: int,
               weights) -> dict[str, jax.Array]:
     n_arenas = n_games // games_per_arena
+    params = sensed_by(params, policy)
     summaries, _ = _play_games(key, broadcast_params(params, n_games // games_per_arena), bind(policy, weights),
                                n_arenas, games_per_arena)
     return _flatten_games(summaries)
@@ -187,7 +198,8 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weigh
         policy: ``policy(key, obs, state, params) -> int32[P]`` for one arena (e.g.
             ``raidjax.policies.heuristic``); it must be hashable (a function, not a lambda
             rebuilt every call, to avoid recompiling). With ``weights``, it is called
-            ``policy(weights, key, obs, state, params)``.
+            ``policy(weights, key, obs, state, params)``. A policy with a ``senses`` attribute
+            plays with those senses (``sensed_by``).
         n_games: number of measured games, a whole number >= 1 (static: one compilation per value).
         weights: ``None``, or the policy's weights (a pytree of arrays). They are an argument of
             the compiled program, not constants in it, so evaluating many checkpoints of one
@@ -243,7 +255,7 @@ def check_games_per_arena(params: Params, n_games: int, games_per_arena) -> int:
 @partial(jax.jit, static_argnames=("policy", "n_games", "bins", "games_per_arena"))
 def _playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int, bins: int,
                         games_per_arena: int, weights) -> jax.Array:
-    batch = broadcast_params(params, n_games // games_per_arena)
+    batch = broadcast_params(sensed_by(params, policy), n_games // games_per_arena)
     n_players = batch.team.shape[-1] - 1
 
     def count(counts, state, counted):

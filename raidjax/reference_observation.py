@@ -71,9 +71,10 @@ class ReferenceObservation:
     alive: jax.Array
 
     def flat(self) -> jax.Array:
-        """``float32[P, 204]`` in ML-Agents' sensor order: buffer (18), projectile rays, wall rays, stack."""
-        p = self.stack.shape[0]
-        return jnp.concatenate([self.teammates.reshape(p, -1), self.projectile_rays, self.wall_rays, self.stack], -1)
+        """``float32[..., P, 204]`` in ML-Agents' sensor order: buffer (18), projectile rays, wall rays,
+        stack (any leading batch axes)."""
+        mates = self.teammates.reshape(*self.stack.shape[:-1], -1)
+        return jnp.concatenate([mates, self.projectile_rays, self.wall_rays, self.stack], -1)
 
 
 @struct.dataclass

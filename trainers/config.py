@@ -59,6 +59,10 @@ class Config:
         checkpoint_every: checkpoint every this many updates (rounded up to whole chunks).
         eval_games: games of the final evaluation (and of PT-HR on the same content).
         deterministic_eval: evaluate the greedy (argmax) policy instead of sampling.
+        senses: what the players observe and how they act (``raidjax.with_senses``):
+            ``"raidjax"`` (raidjax's observation, 10 masked actions) or ``"reference"`` (the
+            reference player's 204-float observation and 8 unmasked actions; the ``paper`` preset).
+            The trained team's ``TeamPolicy`` plays every content with the same senses.
     """
 
     n_arenas: int = 256
@@ -89,6 +93,7 @@ class Config:
     checkpoint_every: int = 50
     eval_games: int = 500
     deterministic_eval: bool = False
+    senses: str = "raidjax"
 
     @property
     def decisions_per_update(self) -> int:
@@ -128,6 +133,7 @@ class Config:
             raise ValueError(f"players: value {list(self.players)}; allowed: 1-8 names of {sorted(catalogue.CLASSES)}")
         if self.content_box:
             pcg.make_space(self.parameters, self.players)  # ValueError naming a bad parameter
+        validate.name("senses", self.senses, ("raidjax", "reference"), "observation and action space")
         if self.hidden % self.heads:
             raise ValueError(f"heads: value {self.heads} must divide hidden = {self.hidden}")
 
@@ -217,11 +223,13 @@ PRESETS: dict[str, Config] = {
     # 11 arenas x 256 decisions, 32 minibatches), time_horizon 256, 3 epochs, 2 x 256 hidden, 4
     # heads, lr 3e-4 and beta 0.01 constant (the yaml sets every schedule to constant), epsilon
     # 0.2, lambda 0.95, gamma 0.99, torch Adam (eps 1e-8), no gradient clipping, max_steps 5e7
-    # agent steps = 5e7 / 3 decisions with all players alive. Differences left: docs/GAME.md.
+    # agent steps = 5e7 / 3 decisions with all players alive, the reference player's senses
+    # (its observation, encoded as networks.Actor does for it, and its 8 actions). Differences
+    # left: docs/GAME.md.
     "paper": Config(n_arenas=_PAPER_ARENAS, n_steps=256, n_minibatches=_PAPER_MINIBATCHES, update_epochs=3,
                     lr=3e-4, anneal_lr=False, adam_eps=1e-8, max_grad_norm=0.0, hidden=256, layers=2, heads=4,
                     ent_coef=0.01, anneal_ent=False, lam=0.95, gamma=0.99, clip_eps=0.2,
-                    total_steps=-(-PAPER_AGENT_STEPS // 3), redraw_every=2),
+                    total_steps=-(-PAPER_AGENT_STEPS // 3), redraw_every=2, senses="reference"),
     # Small and wide: 256 arenas amortise the per-step cost on a 2-core CPU; a 2 x 32 network
     # with teammate-only attention (projectiles join the self features), 2 epochs of 8
     # minibatches of 1024 decisions, lr 1e-3 (see docs/RESULTS.md).

@@ -294,6 +294,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     else:
         base = (pcg.base_game(cfg.players) if cfg.content_box
                 else raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0]))
+    base = raidjax.with_senses(base, cfg.senses)
     default_set = range_table(cfg.skill_ranges)
     multi_range = len(cfg.skill_ranges) > 1 if redraw_ranges is None else redraw_ranges
     multi_range = (multi_range or cfg.content_box) and not fixed_content
@@ -316,7 +317,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     def init(key: jax.Array, content: Params | None = None, range_set: jax.Array | None = None) -> Runner:
         """A fresh runner; ``content`` (unbatched Params) and ``range_set`` (``float32[RANGE_TABLE]``,
         see ``range_table``) default to ``base_params`` and ``config.skill_ranges``."""
-        content = base if content is None else content
+        content = base if content is None else raidjax.with_senses(content, cfg.senses)
         range_set = default_set if range_set is None else range_set
         k_a, k_c, k_env, k_rng, k_run = jax.random.split(key, 5)
         skills = draw_skills(k_rng, cfg, range_set, n)
@@ -424,6 +425,7 @@ class TeamPolicy:
 
     actor: Actor
     deterministic: bool = False
+    senses: str = "raidjax"  # raidjax.playtest plays every content with these senses (sensed_by)
 
     def __call__(self, weights, key, obs, state, params):
         return sample_actions(key, self.actor.apply(weights, obs), obs.alive, self.deterministic)[0]
@@ -451,4 +453,5 @@ def load_policy(path: str | Path, seed: int = 0, deterministic: bool | None = No
         raise checkpoint.CheckpointError(f"seed: {seed} not in the checkpoint's {n_seeds} seeds")
     weights = jax.tree.map(lambda x: jnp.asarray(x[seed]), weights)
     actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, jnp.bfloat16 if cfg.bf16 else jnp.float32)
-    return TeamPolicy(actor, cfg.deterministic_eval if deterministic is None else bool(deterministic)), weights
+    greedy = cfg.deterministic_eval if deterministic is None else bool(deterministic)
+    return TeamPolicy(actor, greedy, cfg.senses), weights

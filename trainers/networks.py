@@ -1,9 +1,10 @@
 """Flax networks of MA-POCA (GAME.md §12): a shared entity-attention actor and a centralised critic
 that gives both the group value V(s) and the counterfactual baselines Q(s, a_-i).
 
-Shapes: ``P`` players, ``A = raidjax.types.N_ACTIONS`` actions, ``H`` hidden width, ``...`` any
-leading batch axes. Every module takes a ``raidjax.Observation`` whose fields carry the player
-axis ``P`` right after the batch axes (as ``raidjax.step`` returns them).
+Shapes: ``P`` players, ``A`` actions (``config.n_actions``, the width of ``obs.action_mask``),
+``H`` hidden width, ``...`` any leading batch axes. Every module takes a ``raidjax.Observation``
+or a ``ReferenceObservation`` (``observation="reference"``) whose fields carry the player axis
+``P`` right after the batch axes (as ``raidjax.step`` returns them).
 
 Mixed precision: with ``dtype=jnp.bfloat16`` every Dense and LayerNorm computes in bfloat16
 (XLA accumulates matmuls in float32 on GPUs and TPUs) while the parameters stay float32; attention
@@ -23,7 +24,8 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from raidjax.types import N_ACTIONS, Observation
+from raidjax.reference_observation import ReferenceObservation
+from raidjax.types import Observation
 
 NEG = -1e9  # additive mask for logits/attention (finite: an all-masked row stays NaN-free)
 
@@ -104,6 +106,11 @@ class Actor(nn.Module):
     masked mean-pool -> MLP -> masked logits. Without ``proj_attention`` the K projectile slots
     (sorted nearest first, masked slots zero) join the self features instead (cheaper on CPU).
 
+    On a ``ReferenceObservation`` it is the reference trainer's network (ML-Agents'
+    ``ObservationEncoder``): the teammate buffer through an entity embedding that also sees the
+    rank-1 observations (rays and stack, 186 floats, unnormalised), residual self-attention with
+    dead teammates' rows masked, then the 186 floats and the pooled attention into the MLP.
+
     ``obs`` fields ``[..., P, ...]`` -> logits ``float32[..., P, A]`` (invalid actions at ``NEG``).
     """
 
@@ -114,8 +121,17 @@ class Actor(nn.Module):
     dtype: Any = jnp.float32
 
     @nn.compact
-    def __call__(self, obs: Observation) -> jax.Array:
+    def __call__(self, obs: Observation | ReferenceObservation) -> jax.Array:
         h, dt = self.hidden, self.dtype
+        n_actions = obs.action_mask.shape[-1]
+        if isinstance(obs, ReferenceObservation):
+            flat = jnp.concatenate([obs.projectile_rays, obs.wall_rays, obs.stack], axis=-1)
+            ctx = nn.Dense(h, use_bias=False, dtype=dt, name="self_ctx")(flat)[..., None, :]
+            ents = nn.relu(nn.Dense(h, dtype=dt, name="mate_emb")(obs.teammates) + ctx)
+            pooled = ResidualSelfAttention(h, self.heads, dt, name="rsa")(ents, obs.teammate_mask)
+            x = MLP(h, self.layers, dt, name="body")(jnp.concatenate([flat.astype(pooled.dtype), pooled], axis=-1))
+            logits = nn.Dense(n_actions, kernel_init=nn.initializers.orthogonal(0.01), dtype=dt, name="pi")(x)
+            return masked_logits(logits.astype(jnp.float32), obs.action_mask)
         self_parts = [obs.self_features, obs.boss, obs.walls]
         if not self.proj_attention:
             lead = obs.projectile_mask.shape
@@ -131,14 +147,18 @@ class Actor(nn.Module):
             mask = jnp.concatenate([mask, obs.projectile_mask], axis=-1)
         pooled = ResidualSelfAttention(h, self.heads, dt, name="rsa")(ents, mask)
         x = MLP(h, self.layers, dt, name="body")(jnp.concatenate([s, pooled], axis=-1))
-        logits = nn.Dense(N_ACTIONS, kernel_init=nn.initializers.orthogonal(0.01), dtype=dt, name="pi")(x)
+        logits = nn.Dense(n_actions, kernel_init=nn.initializers.orthogonal(0.01), dtype=dt, name="pi")(x)
         return masked_logits(logits.astype(jnp.float32), obs.action_mask)
 
 
-def critic_inputs(obs: Observation) -> jax.Array:
+def critic_inputs(obs: Observation | ReferenceObservation) -> jax.Array:
     """Per-agent critic input ``float32[..., P, D]``: the flat observation view (the fields of
-    ``Observation.flat``, masks as 0/1), for any number of leading batch axes."""
+    ``Observation.flat``, masks as 0/1; a reference observation's 204 floats and its teammate
+    mask), for any number of leading batch axes."""
     lead = obs.alive.shape
+    if isinstance(obs, ReferenceObservation):
+        parts = [obs.teammates, obs.teammate_mask, obs.projectile_rays, obs.wall_rays, obs.stack]
+        return jnp.concatenate([x.astype(jnp.float32).reshape(*lead, -1) for x in parts], axis=-1)
     parts = [obs.self_features, obs.boss, obs.teammates, obs.teammate_mask, obs.projectiles,
              obs.projectile_mask, obs.walls, obs.action_mask]
     return jnp.concatenate([x.astype(jnp.float32).reshape(*lead, -1) for x in parts], axis=-1)
@@ -190,7 +210,8 @@ class Critic(nn.Module):
         x = critic_inputs(obs)
         p = x.shape[-2]
         e_o = nn.relu(self.obs_emb(x))
-        e_oa = nn.relu(self.obs_act_emb(jnp.concatenate([x, jax.nn.one_hot(actions, N_ACTIONS)], axis=-1)))
+        one_hot = jax.nn.one_hot(actions, obs.action_mask.shape[-1])
+        e_oa = nn.relu(self.obs_act_emb(jnp.concatenate([x, one_hot], axis=-1)))
         qkv_o, qkv_oa = self.rsa.project(e_o), self.rsa.project(e_oa)  # per-token, shared by all i
         eye = jnp.eye(p, dtype=bool)  # [i, j]: token j of agent i's baseline is observation-only
         tokens = jnp.where(eye[..., None], e_o[..., None, :, :], e_oa[..., None, :, :])  # [..., i, j, H]

@@ -122,7 +122,7 @@ def _parse(argv=None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="python -m experiments.benchmark2",
                                  description="Benchmark 2 (content generation) of the RaidEnv paper",
                                  formatter_class=HelpFormatter)
-    ap.add_argument("--scale", choices=sorted(SCALES), default="cpu", help="budgets: smoke (a test), cpu, paper")
+    ap.add_argument("--scale", choices=sorted(SCALES), default="smoke", help="budgets: smoke (minutes), cpu, paper")
     ap.add_argument("--out", required=True, help="run folder, new or holding this run with --resume (required)")
     ap.add_argument("--resume", action="store_true", help="continue the run in --out (same settings; a finished run "
                     "is left as it is)")

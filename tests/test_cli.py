@@ -146,15 +146,16 @@ def test_every_help_shows_the_defaults(command, capsys):
         if name != "-h" and takes_value:
             assert "default" in block or "(required)" in block, f"{command}: {block}"
     expected = {"calibrate": "(default: 2000)", "render": "(default: 600)", "train mapoca": "(default: cpu)",
-                "train ppo-pcgrl": "(default: 300)", "benchmark 1": "(default: smoke)", "benchmark 2": "(default: cpu)",
-                "balance": "(default: smoke)", "plot": "(required)"}
+                "train ppo-pcgrl": "(default: 300)", "benchmark 1": "(default: smoke)",
+                "benchmark 2": "(default: smoke)", "balance": "(default: smoke)", "plot": "(required)"}
     assert expected[command] in text
 
 
 def _documented() -> dict[str, set[str]]:
-    """``{command: flags}`` of every ``raidjax COMMAND ...`` line in the README and docs/RESULTS.md
-    (``test_house.py`` checks their ``python -m`` lines the same way)."""
-    text = (ROOT / "README.md").read_text() + (ROOT / "docs" / "RESULTS.md").read_text()
+    """``{command: flags}`` of every ``raidjax COMMAND ...`` line in the README, CONTRIBUTING.md and
+    docs/*.md (``test_house.py`` checks their ``python -m`` lines the same way)."""
+    docs = [ROOT / "README.md", ROOT / "CONTRIBUTING.md", *sorted((ROOT / "docs").glob("*.md"))]
+    text = "".join(p.read_text() for p in docs)
     out: dict[str, set[str]] = {}
     pattern = r"\braidjax (calibrate|render|plot|train [\w-]+|benchmark \w+)\b([^`\n|]*)"
     for command, rest in re.findall(pattern, text):

@@ -112,7 +112,8 @@ def _commands(text: str) -> dict[str, set[str]]:
     return out
 
 
-DOC_COMMANDS = _commands((ROOT / "README.md").read_text() + (ROOT / "docs" / "RESULTS.md").read_text())
+DOCS = [ROOT / "README.md", ROOT / "CONTRIBUTING.md", *sorted((ROOT / "docs").glob("*.md"))]
+DOC_COMMANDS = _commands("".join(p.read_text() for p in DOCS))
 
 
 @pytest.mark.parametrize("module", sorted(DOC_COMMANDS))

@@ -117,8 +117,8 @@ def _parser(prog: str, trained: bool) -> argparse.ArgumentParser:
                     + (" | a trained MA-POCA run folder (trainers.mapoca_cli --out)" if trained else ""))
     ap.add_argument("--skill-range", type=number_arg(low, high), default=9.0, metavar="RANGE",
                     help="range of every player's skill slot 1")
-    ap.add_argument("--players", default="mage,mage,mage",
-                    help=f"1 to 8 comma-separated class presets from {', '.join(sorted(CLASSES))}")
+    ap.add_argument("--players", nargs="+", default=["mage"] * 3,
+                    help=f"1 to 8 class presets, e.g. warrior mage priest, from {', '.join(sorted(CLASSES))}")
     ap.add_argument("--seed", type=whole_number_arg(0, 2**31 - 1), default=0, help="PRNG seed of the episode")
     ap.add_argument("--decisions", type=whole_number_arg(1, limit), default=600,
                     help=f"decisions recorded (0.1 s each; the episode limit is {limit})")
@@ -126,14 +126,16 @@ def _parser(prog: str, trained: bool) -> argparse.ArgumentParser:
     return ap
 
 
-def _players(text: str) -> list[str]:
-    """``--players`` as a list of class preset names, checked (``ValueError`` naming the flag)."""
-    names = [n.strip() for n in text.split(",")]
-    allowed = f"1 to 8 comma-separated class presets from {sorted(CLASSES)}"
+def _players(words: list[str]) -> list[str]:
+    """``--players`` (space-separated, as in every command) as class preset names, checked
+    (``ValueError`` naming the flag)."""
+    names = [n.strip() for w in words for n in w.split(",") if n.strip()]  # "mage,mage" still reads
+    text = " ".join(words)
+    allowed = f"1 to 8 class presets (space-separated) from {sorted(CLASSES)}"
     unknown = [n for n in names if n not in CLASSES]
     if unknown:
         raise ValueError(f"--players: value {text!r} names an unknown class {unknown[0]!r}; allowed: {allowed}")
-    if len(names) > 8:
+    if not 1 <= len(names) <= 8:
         raise ValueError(f"--players: value {text!r} names {len(names)} players; allowed: {allowed}")
     return names
 

@@ -44,9 +44,9 @@ MISTAKES = [
      "argument --decisions: value '0'; allowed: a whole number in [1, 2000]"),
     ("render-skill-range-out-of-range", "raidjax.render", ["--skill-range", "50"],
      "argument --skill-range: value '50'; allowed: a number in [1, 20]"),
-    ("render-unknown-class", "trainers.render", ["--players", "mage,wizard"],
-     f"error: --players: value 'mage,wizard' names an unknown class 'wizard'; allowed: 1 to 8 comma-separated "
-     f"class presets from {KNOWN_CLASSES}"),
+    ("render-unknown-class", "trainers.render", ["--players", "mage", "wizard"],
+     f"error: --players: value 'mage wizard' names an unknown class 'wizard'; allowed: 1 to 8 class presets "
+     f"(space-separated) from {KNOWN_CLASSES}"),
     ("calibrate-games-0", "raidjax.calibrate", ["--games", "0"],
      "argument --games: value '0'; allowed: a whole number >= 1"),
     ("calibrate-games-negative", "raidjax.calibrate", ["--games", "-5"],

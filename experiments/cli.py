@@ -62,7 +62,7 @@ def _missing_extra(e: ModuleNotFoundError, words: str) -> None:
         raise e
     extra = EXTRA_OF[top]
     _fail(f"raidjax {words} needs {top}, which is not installed: pip install -e \".[{extra}]\" "
-          f"(from a checkout) or pip install \"raidjax[{extra}]\"")
+          "in your raidjax checkout")
 
 
 def _load(words: str, module: str):

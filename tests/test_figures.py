@@ -1,0 +1,43 @@
+"""The docs' figure scripts run on the stored results and on tiny synthetic run folders."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("matplotlib")
+
+from experiments import b1_compare, calibration_figure  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_calibration_figure_from_the_stored_tables(tmp_path):
+    tables = sorted((ROOT / "docs" / "results" / "calibration").glob("calibration_*_seed*.json"))
+    assert tables
+    out = tmp_path / "c.png"
+    calibration_figure.main([*map(str, tables), "--out", str(out)])
+    assert out.stat().st_size > 1000
+
+
+def _run_folder(path: Path, win: float) -> Path:
+    (path / "csv").mkdir(parents=True)
+    (path / "train").mkdir()
+    rows = ["agent,range,mean,sd,n,paper"] + [f"MA-POCA,{r},{win},0.01,2,0.5" for r in (5.0, 9.0, 13.0, 17.0)]
+    (path / "csv" / "win_rate_table.csv").write_text("\n".join(rows) + "\n")
+    cols = [f"win/table/r{r}/{s}" for r in (5, 9, 13, 17) for s in (0, 1)]
+    lines = ["chunk,env_steps," + ",".join(cols), "0,100," + ",".join(["0.2"] * 8), "1,200," + ",".join(["0.6"] * 8)]
+    (path / "train" / "metrics.csv").write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_b1_compare_table_and_curves(tmp_path, capsys):
+    a, b = _run_folder(tmp_path / "a", 0.9), _run_folder(tmp_path / "b", 0.4)
+    assert b1_compare.curves(a)[13.0] == ([100.0, 200.0], [0.2, 0.6])  # mean over the two seeds
+    out = tmp_path / "curves.png"
+    b1_compare.main([str(a), str(b), "--labels", "ours", "theirs", "--out", str(out)])
+    text = capsys.readouterr().out
+    assert "| ours | 0.900 ± 0.010 |" in text and "| theirs | 0.400 ± 0.010 |" in text and out.stat().st_size > 1000
+    with pytest.raises(SystemExit):
+        b1_compare.main([str(a), "--labels", "x", "y", "--out", str(out)])

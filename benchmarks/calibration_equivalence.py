@@ -19,8 +19,8 @@ import time
 
 import raidjax
 from raidjax import calibrate
+from raidjax.io import machine, run_cli, whole_number_arg
 from raidjax.playtest import auto_games_per_arena
-from raidjax.utils import machine, run_cli, whole_number_arg
 
 
 def two_proportion(w1: float, w2: float, n1: int, n2: int) -> tuple[float, float]:

@@ -16,7 +16,7 @@ import jax
 import numpy as np
 
 import raidjax
-from raidjax.utils import machine, run_cli, whole_number_arg
+from raidjax.io import machine, run_cli, whole_number_arg
 
 
 def main() -> None:

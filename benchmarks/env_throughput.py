@@ -18,8 +18,8 @@ import jax
 import jax.numpy as jnp
 
 import raidjax
+from raidjax.io import machine, whole_number_arg
 from raidjax.playtest import auto_games_per_arena
-from raidjax.utils import machine, whole_number_arg
 
 
 def make_rollout(n_arenas: int, n_steps: int):

@@ -16,7 +16,7 @@ import time
 import jax
 
 from raidjax import pcg
-from raidjax.utils import machine
+from raidjax.io import machine
 from raidjax.xla_flags import use_recommended_xla_flags
 
 

@@ -26,8 +26,8 @@ from env_throughput import arenas
 import raidjax
 from raidjax import combat
 from raidjax.env import substep
+from raidjax.io import machine
 from raidjax.types import TICKS_PER_DECISION
-from raidjax.utils import machine
 
 
 def cost(compiled) -> dict:

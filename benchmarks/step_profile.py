@@ -27,7 +27,7 @@ import jax
 from env_throughput import arenas, make_rollout
 
 import raidjax
-from raidjax.utils import machine
+from raidjax.io import machine
 
 PHASES = ("movement", "casting", "fire", "projectiles", "hits", "observation", "next_episode")
 

@@ -31,7 +31,7 @@ from pathlib import Path
 import jax
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script from anywhere
-from raidjax.utils import machine
+from raidjax.io import machine
 from raidjax.xla_flags import use_recommended_xla_flags
 from trainers.config import PRESETS  # noqa: E402
 from trainers.mapoca import make_trainer  # noqa: E402

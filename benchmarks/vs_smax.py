@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 
 import raidjax
-from raidjax.utils import machine
+from raidjax.io import machine
 from raidjax.xla_flags import use_recommended_xla_flags
 
 

@@ -20,8 +20,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from raidjax.env import BOSS_SPAWN, PLAYER_SPACING, PLAYER_SPAWN_Y  # noqa: E402
+from raidjax.io import atomic_write  # noqa: E402
 from raidjax.types import HALF_ARENA  # noqa: E402
-from raidjax.utils import atomic_write  # noqa: E402
 from trainers.runfolder import RunFolder, markdown_table  # noqa: E402
 
 # GAME.md §9 (the paper's Table "Win rate between MARL and Heuristic agent", 500 games)
@@ -252,7 +252,7 @@ def cli(argv=None) -> None:
     from its ``heatmaps.npz`` and ``config.json`` (no training, no playing)."""
     import argparse
 
-    from raidjax.utils import HelpFormatter, run_cli
+    from raidjax.io import HelpFormatter, run_cli
 
     ap = argparse.ArgumentParser(prog="python -m experiments.b1_report", formatter_class=HelpFormatter,
                                  description="Redraw a Benchmark 1 run's occupancy heatmaps from its saved maps")

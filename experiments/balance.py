@@ -39,7 +39,7 @@ import numpy as np
 
 import raidjax
 from raidjax import pcg
-from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, run_cli
+from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli
 from trainers import checkpoint, mapoca_cli, ppo_pcgrl_cli
 from trainers.config import PRESETS, Config
 from trainers.generate import evaluate, target_groups

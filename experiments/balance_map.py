@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from raidjax.utils import atomic_write
+from raidjax.io import atomic_write
 
 DOCS_PNG = Path(__file__).resolve().parents[1] / "docs" / "img" / "balance_map.png"
 BALANCED = 0.5  # the win rate that separates "too easy" from "too hard"

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from raidjax.io import HelpFormatter, run_cli
 from raidjax.pcg import metrics as pm
-from raidjax.utils import HelpFormatter, run_cli
 from trainers.runfolder import RunFolder, markdown_table
 
 TESTERS = ("learned", "scripted")

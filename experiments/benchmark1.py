@@ -38,9 +38,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
+from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from raidjax.playtest import auto_games_per_arena
 from raidjax.sharding import put_batch
-from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import PRESETS, Config
 from trainers.mapoca import RANGE_TABLE, make_trainer, range_table

@@ -41,9 +41,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg
+from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from raidjax.pcg import metrics as pm
 from raidjax.sharding import put_batch
-from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.generate import evaluate, target_groups
 from trainers.metrics import update_rows

@@ -22,8 +22,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
+from raidjax.io import HelpFormatter, atomic_write, check_output_file, run_cli, whole_number_arg
 from raidjax.playtest import auto_games_per_arena
-from raidjax.utils import HelpFormatter, atomic_write, check_output_file, run_cli, whole_number_arg
 
 RANGES = (5.0, 9.0, 13.0, 17.0)
 PAPER = {"heuristic": (0.089, 0.371, 0.698, 0.830), "random": (0.000, 0.002, 0.029, 0.058)}

@@ -22,9 +22,9 @@ from PIL import Image, ImageDraw
 
 from raidjax.catalogue import CLASSES
 from raidjax.content import SKILL_SPECS
+from raidjax.io import HelpFormatter, atomic_write, check_output_file, number_arg, run_cli, whole_number_arg
 from raidjax.policies import BY_NAME
 from raidjax.types import HALF_ARENA, PROJ_AREA, EnvConfig, Params
-from raidjax.utils import HelpFormatter, atomic_write, check_output_file, number_arg, run_cli, whole_number_arg
 
 PLAYER_COLOURS = [(66, 135, 245), (46, 204, 113), (241, 196, 15), (155, 89, 182), (230, 126, 34)]
 BOSS_COLOUR = (200, 40, 40)

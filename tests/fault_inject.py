@@ -92,9 +92,9 @@ def install(fault: str) -> None:
     elif when == "mid_file":
         import tempfile
 
-        from raidjax import utils
+        from raidjax import io as raidjax_io
 
-        real_atomic = utils.atomic_write
+        real_atomic = raidjax_io.atomic_write
 
         def atomic_write(path, data):
             if hit():
@@ -104,7 +104,7 @@ def install(fault: str) -> None:
                 _kill()
             return real_atomic(path, data)
 
-        utils.atomic_write = atomic_write
+        raidjax_io.atomic_write = atomic_write
     else:
         raise SystemExit(f"unknown fault {fault!r}")
 

@@ -208,7 +208,7 @@ def test_json_is_finite_and_rounded():
 
     import numpy as np
 
-    from raidjax.utils import finite_json
+    from raidjax.io import finite_json
 
     text = finite_json({"w": np.float32(0.726), "nan": float("nan"), "x": [np.float64(0.6759999999999999)]}, 6)
     assert json.loads(text) == {"w": 0.726, "nan": None, "x": [0.676]} and "NaN" not in text

@@ -46,7 +46,7 @@ def test_too_late_warns_and_changes_nothing():
 
 @pytest.mark.parametrize("module", ["raidjax.calibrate", "trainers.mapoca_cli", "experiments.benchmark1"])
 def test_commands_run_with_the_flags(module, tmp_path):
-    """raidjax's command lines opt in before JAX starts (through ``raidjax.utils.run_cli``)."""
+    """raidjax's command lines opt in before JAX starts (through ``raidjax.io.run_cli``)."""
     code = (f"import os, sys, {module} as m\nfrom jax._src import xla_bridge\n"
             "sys.argv = ['x', '--help']\n"
             "try:\n    m.cli() if hasattr(m, 'cli') else m.main()\nexcept SystemExit:\n    pass\n"

@@ -28,7 +28,7 @@ import jax
 import numpy as np
 import orbax.checkpoint as ocp
 
-from raidjax.utils import atomic_write
+from raidjax.io import atomic_write
 
 
 class CheckpointError(RuntimeError):

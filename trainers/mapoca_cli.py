@@ -25,8 +25,8 @@ import numpy as np
 
 import raidjax
 from raidjax import pcg
+from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, machine, run_cli, whole_number_arg
 from raidjax.sharding import put_batch
-from raidjax.utils import HelpFormatter, atomic_write, fmt_seconds, machine, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import Config, load_config
 from trainers.mapoca import load_policy, make_trainer, summarize

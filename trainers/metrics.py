@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from raidjax.utils import atomic_write, finite_json
+from raidjax.io import atomic_write, finite_json
 
 
 def _scalar(v) -> bool:

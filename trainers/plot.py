@@ -10,7 +10,7 @@ import csv
 import io
 from pathlib import Path
 
-from raidjax.utils import HelpFormatter, atomic_write, check_output_file, run_cli
+from raidjax.io import HelpFormatter, atomic_write, check_output_file, run_cli
 
 FORMATS = ("png", "pdf", "svg")  # of --out, by its suffix
 

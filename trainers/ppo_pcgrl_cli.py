@@ -25,8 +25,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg
+from raidjax.io import HelpFormatter, atomic_write, finite_json, fmt_seconds, run_cli, whole_number_arg
 from raidjax.sharding import put_batch
-from raidjax.utils import HelpFormatter, atomic_write, finite_json, fmt_seconds, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import read_fields
 from trainers.generate import evaluate, target_groups

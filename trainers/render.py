@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from raidjax import render
-from raidjax.utils import run_cli
+from raidjax.io import run_cli
 from trainers import checkpoint
 from trainers.mapoca import load_policy
 

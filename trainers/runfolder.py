@@ -5,7 +5,7 @@
   refused, naming every differing setting with both values); ``--resume`` on a folder that holds
   no run is refused too. A finished run (``summary.json``/``result.json`` present) resumed is a
   no-op that says so.
-- Every file is written atomically (``raidjax.utils.atomic_write``; a resumed run removes the
+- Every file is written atomically (``raidjax.io.atomic_write``; a resumed run removes the
   temporaries of writes that were killed); metrics rows past the
   checkpoint resumed from are dropped (``trainers.metrics``); checkpoints are verified on restore
   (``trainers.checkpoint``).
@@ -37,7 +37,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from raidjax.utils import atomic_write, finite_json, fmt_seconds, machine
+from raidjax.io import atomic_write, finite_json, fmt_seconds, machine
 
 
 class RunFolderError(ValueError):

@@ -1,0 +1,223 @@
+"""Host-side plumbing shared by the simulator's commands, the trainers and the experiments (never
+traced): ``atomic_write`` (every file a user keeps), ``finite_json``, ``machine`` and ``fmt_seconds``
+(reports and progress lines), and the command-line helpers ``HelpFormatter``,
+``whole_number_arg``, ``number_arg``, ``check_output_file`` and ``run_cli``."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import tempfile
+from pathlib import Path
+
+import jax
+
+
+def machine(load: bool = False) -> dict:
+    """A JSON-able description of the JAX devices and the host: ``platform``, ``device``,
+    ``device_count`` (devices JAX sees, all hosts), ``cpu_count``, ``processor``, ``jax`` version, and
+    with ``load`` the 1-minute load average (``load_average_1m``; timings on a shared machine depend on it)."""
+    dev = jax.devices()[0]
+    out = {"platform": dev.platform, "device": str(dev.device_kind), "device_count": jax.device_count(),
+           "cpu_count": os.cpu_count(),
+           "processor": platform.processor() or platform.machine(), "jax": jax.__version__}
+    if load:
+        out["load_average_1m"] = round(os.getloadavg()[0], 2)
+    return out
+
+
+def fmt_seconds(s: float) -> str:
+    """A duration for progress lines: ``"1h02m"``, ``"3m07s"`` or ``"12s"``."""
+    if s >= 3600:
+        return f"{int(s // 3600)}h{int(s % 3600 // 60):02d}m"
+    return f"{int(s // 60)}m{int(s % 60):02d}s" if s >= 60 else f"{s:.0f}s"
+
+
+def atomic_write(path: str | Path, data: str | bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``, so
+    a reader sees the old file or the new one, never half of one. Returns ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode() if isinstance(data, str) else data)
+            f.flush()
+            os.fsync(f.fileno())
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual mode
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """``--help`` of every raidjax command line: each option's default as ``(default: X)``, unless its
+    help already says it (an option defaulting to ``None`` says in words what happens without it,
+    e.g. ``(default: the preset's)``); flags (``False``) and required options show none."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if ("default" in text or action.required or not action.option_strings
+                or action.default is None or action.default is False or action.default is argparse.SUPPRESS):
+            return text
+        return text + " (default: %(default)s)"
+
+
+def whole_number_arg(low: int = 1, high: int | None = None):
+    """An ``argparse`` type: a whole number ``>= low`` (and ``<= high`` when given), else a one-line
+    usage error naming the value (checked before anything compiles; ``raidjax.validate.whole_number``
+    checks Python values)."""
+    allowed = f"a whole number >= {low}" if high is None else f"a whole number in [{low}, {high}]"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"value {text!r}; allowed: {allowed}")
+        return value
+
+    parse.__name__ = allowed.removeprefix("a ")
+    return parse
+
+
+def number_arg(low: float, high: float):
+    """An ``argparse`` type: a finite number in ``[low, high]``, else a one-line usage error naming
+    the value (no clipping)."""
+    import math
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not low <= value <= high:  # NaN fails too
+            raise argparse.ArgumentTypeError(f"value {text!r}; allowed: a number in [{low:g}, {high:g}]")
+        return value
+
+    parse.__name__ = f"number in [{low:g}, {high:g}]"
+    return parse
+
+
+def check_output_file(flag: str, path: str | Path, suffixes: tuple[str, ...] = (), what: str = "a file") -> Path:
+    """Check a command line's output file before anything runs (a long run must not fail at its
+    last write): not a folder, inside an existing folder this process may write to, and ending
+    in one of ``suffixes`` (any case) when given. An existing file is allowed (replaced
+    atomically by ``atomic_write``).
+
+    Returns:
+        ``path`` as a ``Path``.
+
+    Raises:
+        ValueError: one line, ``"<flag>: value '<path>' <what is wrong>; allowed: <what is allowed>"``.
+    """
+    text = str(path)
+    ends = " or ".join(suffixes)
+    allowed = f"{what} path{' ending in ' + ends if suffixes else ''}, in an existing folder"
+    path = Path(path)
+    folder = path.parent
+    if not text.strip():
+        wrong = "is empty"
+    elif path.is_dir() or text.endswith(("/", os.sep)):
+        wrong = "is a folder"
+    elif suffixes and not path.name.lower().endswith(tuple(s.lower() for s in suffixes)):
+        wrong = f"does not end in {ends}"
+    elif not folder.is_dir():
+        wrong = f"is in a folder that does not exist ({folder})"
+        if folder.exists():
+            wrong = f"is under a file ({folder})"
+    elif not os.access(folder, os.W_OK | os.X_OK):
+        wrong = f"is in a folder this process cannot write to ({folder})"
+    else:
+        return path
+    raise ValueError(f"{flag}: value {text!r} {wrong}; allowed: {allowed}")
+
+
+def _exit_on_ctrl_c(line: str) -> None:
+    """From now on, SIGINT prints ``line`` to stderr and exits 130 at once, whatever the main thread
+    is doing. A KeyboardInterrupt would not do: it waits until an XLA compile (tens of seconds)
+    returns, and when it is raised inside jax's garbage-collection callback Python reports it as
+    "Exception ignored" and carries on, so the user's Ctrl-C is lost. Instead the signal's wakeup
+    fd is read by a watcher thread, which exits the process."""
+    import signal
+    import sys
+    import threading
+
+    read_end, write_end = os.pipe()
+    os.set_blocking(write_end, False)
+    signal.signal(signal.SIGINT, lambda *_: None)  # the watcher acts; the main thread must not raise
+    signal.set_wakeup_fd(write_end, warn_on_full_buffer=False)
+
+    def watch():
+        while True:
+            if signal.SIGINT in os.read(read_end, 64):
+                sys.stdout.flush()
+                print(line, file=sys.stderr, flush=True)
+                # Straight out: a normal interpreter exit can crash (SIGSEGV) while XLA threads are
+                # still compiling or running; every user file is written atomically, so nothing
+                # is half-written.
+                os._exit(130)
+
+    threading.Thread(target=watch, name="raidjax-ctrl-c", daemon=True).start()
+
+
+def run_cli(main, errors: tuple[type[BaseException], ...] = (ValueError,), interrupted: str = "") -> None:
+    """Run a command line's ``main()`` the way users expect: a user's mistake (``errors``) prints
+    ``error: <message>`` on one line and exits 2; Ctrl-C prints one line (with ``interrupted``, e.g.
+    how to resume) and exits 130. ``RAIDJAX_DEBUG=1`` re-raises with the traceback. Before
+    ``main`` runs, the process gets raidjax's recommended XLA flags (``raidjax.xla_flags``)."""
+    import sys
+
+    from raidjax.xla_flags import use_recommended_xla_flags
+
+    use_recommended_xla_flags()
+    if not os.environ.get("RAIDJAX_DEBUG"):
+        _exit_on_ctrl_c(f"interrupted{'; ' + interrupted if interrupted else ''}")
+    try:
+        main()
+    except errors as e:
+        if os.environ.get("RAIDJAX_DEBUG"):
+            raise
+        print(f"error: {e}", file=sys.stderr, flush=True)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        if os.environ.get("RAIDJAX_DEBUG"):
+            raise
+        print(f"interrupted{'; ' + interrupted if interrupted else ''}", file=sys.stderr, flush=True)
+        sys.stdout.flush()
+        # Straight out: a normal interpreter exit can crash (SIGSEGV) while XLA threads are still
+        # compiling or running; every user file is written atomically, so nothing is half-written.
+        os._exit(130)
+
+
+def finite_json(obj, digits: int | None = None, **kwargs) -> str:
+    """``json.dumps`` with NaN and infinities written as ``null`` (bare ``NaN`` is not JSON for most
+    parsers), numpy scalars as numbers and, with ``digits``, floats rounded to that many decimals
+    (``0.726``, not float32's ``0.7260000109672546``); ``kwargs`` go to ``json.dumps``."""
+    import json
+    import math
+
+    import numpy as np
+
+    def clean(x):
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items()}
+        if isinstance(x, list | tuple):
+            return [clean(v) for v in x]
+        if isinstance(x, np.ndarray | np.generic) or hasattr(x, "__jax_array__") or type(x).__name__ == "ArrayImpl":
+            x = np.asarray(x)
+            return clean(x.tolist()) if x.ndim else clean(x.item())
+        if isinstance(x, float) and not math.isfinite(x):
+            return None
+        if isinstance(x, float) and digits is not None:
+            return round(x, digits)
+        return x
+
+    return json.dumps(clean(obj), allow_nan=False, **kwargs)

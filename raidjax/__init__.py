@@ -14,7 +14,7 @@ commands' speed (``raidjax.xla_flags``).
 
 from raidjax import catalogue, logs, policies, types
 from raidjax.content import default_params, make_params, validate_params, with_player_skill, with_senses
-from raidjax.env import next_episode, reset, step, step_autoreset
+from raidjax.env import next_episode, reset, step, step_autoreset, team_reward
 from raidjax.observation import action_mask, observe
 from raidjax.playtest import playtest, playtest_occupancy, win_rate
 from raidjax.spaces import Spaces, spaces
@@ -24,8 +24,8 @@ from raidjax.xla_flags import use_recommended_xla_flags
 __version__ = "0.1.0"
 __all__ = [
     "catalogue", "logs", "policies", "types", "default_params", "make_params", "validate_params", "with_player_skill",
-    "with_senses",
-    "reset", "next_episode", "step", "step_autoreset", "observe", "action_mask", "playtest", "playtest_occupancy",
+    "with_senses", "reset", "next_episode", "step", "step_autoreset", "team_reward", "observe", "action_mask",
+    "playtest", "playtest_occupancy",
     "win_rate", "spaces", "Spaces", "N_ACTIONS", "ACTION_HEURISTIC", "EnvConfig", "RULE_SETS", "Observation",
     "Params", "State", "use_recommended_xla_flags",
 ]

@@ -272,6 +272,22 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     return obs, new, reward, done, info
 
 
+def team_reward(info: dict, done: jax.Array) -> jax.Array:
+    """The team's reward for one decision, from ``step``'s ``info``: 0.01 x the damage all players
+    dealt to the boss + 1.0 when the episode ended (``done``) in a win. It equals the sum of the
+    players' rewards minus ``(P - 1)`` x the win bonus (every player gets the bonus; the team once).
+
+    Args:
+        info: ``step``'s info (``damage_dealt: float32[..., P]``, ``result: int32[...]``).
+        done: ``bool[...]``, the episode ended in this decision.
+
+    Returns:
+        ``float32[...]``.
+    """
+    won = done & (info["result"] == WIN)
+    return DAMAGE_REWARD * jnp.sum(info["damage_dealt"], axis=-1) + WIN_REWARD * won
+
+
 def next_episode(key: jax.Array, state: State, params: Params) -> tuple[Observation, State]:
     """Start the arena's next episode after ``state`` (normally an ended one).
 

@@ -14,6 +14,7 @@ import optax
 import pytest
 
 import raidjax
+from raidjax import team_reward
 from raidjax.types import WIN
 from trainers import checkpoint
 from trainers.config import PRESETS, Config, load_config
@@ -25,7 +26,6 @@ from trainers.mapoca import (
     loss_fn,
     make_train,
     make_trainer,
-    team_reward,
 )
 from trainers.networks import Actor, Critic, masked_logits
 

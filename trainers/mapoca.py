@@ -40,7 +40,8 @@ from flax import struct
 import raidjax
 from raidjax import pcg
 from raidjax.content import with_player_skill
-from raidjax.types import DAMAGE_REWARD, WIN, WIN_REWARD, Observation, Params, State
+from raidjax.env import team_reward
+from raidjax.types import WIN, Observation, Params, State
 from trainers import checkpoint
 from trainers.config import Config
 from trainers.networks import Actor, Critic, sample_actions
@@ -91,20 +92,6 @@ class Batch(NamedTuple):
     baseline: jax.Array  # float32[B, P] old b
     returns: jax.Array  # float32[B] λ-returns G
     advantage: jax.Array  # float32[B, P] normalised G - b (0 where not alive)
-
-
-def team_reward(info: dict, done: jax.Array) -> jax.Array:
-    """Team reward from ``raidjax.step`` info: ``0.01 sum_i damage_i + 1.0 [boss died]``.
-
-    Args:
-        info: step info with ``damage_dealt: float32[..., P]`` and ``result: int32[...]``.
-        done: ``bool[...]``.
-
-    Returns:
-        ``float32[...]`` (equals ``reward.sum(-1) - (P - 1) * won``; see the module docstring).
-    """
-    won = done & (info["result"] == WIN)
-    return DAMAGE_REWARD * jnp.sum(info["damage_dealt"], axis=-1) + WIN_REWARD * won
 
 
 def lambda_returns(reward, next_value, done, terminated, gamma: float, lam: float) -> jax.Array:

@@ -38,10 +38,10 @@ from gymnax.environments.environment import Environment
 
 from raidjax import policies
 from raidjax.content import make_params
-from raidjax.env import check_actions
+from raidjax.env import check_actions, team_reward
 from raidjax.observation import observe
 from raidjax.spaces import spaces
-from raidjax.types import DAMAGE_REWARD, DRAW, LOSS, WIN, WIN_REWARD, Observation, Params
+from raidjax.types import DRAW, LOSS, WIN, Observation, Params
 from raidjax.wrappers.common import ArenaState, advance, start
 
 
@@ -143,8 +143,7 @@ class RaidTeamEnv(_RaidView):
         return self.decode(action.astype(jnp.int32))
 
     def _reward(self, reward, info):
-        won = info["terminated"] & (info["result"] == WIN)
-        return DAMAGE_REWARD * jnp.sum(info["damage_dealt"]) + WIN_REWARD * won
+        return team_reward(info, info["terminated"])
 
 
 class RaidPlayerEnv(_RaidView):

@@ -27,7 +27,7 @@ def make_rollout(params: pcg.PCGParams, n_steps: int):
         def body(st, k):
             ka, ks = jax.random.split(k)
             n = st.target.shape[0]
-            act = jax.random.randint(ka, (n, pcg.N_PARAMS), 0, pcg.N_CHOICES)
+            act = jax.random.randint(ka, (n, pcg.env.N_PARAMS), 0, pcg.env.N_CHOICES)
             _, st, r, _, _ = jax.vmap(lambda kk, s, a: pcg.step_autoreset(kk, s, a, params))(
                 jax.random.split(ks, n), st, act)
             return st, r.sum()

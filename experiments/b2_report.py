@@ -175,7 +175,8 @@ def tsne_figure(gens: dict, seed: int = 0, per_target: int = 300):
             xs.append(g["skill"][idx])
             ts += [float(t)] * idx.size
             ms += [m] * idx.size
-    x = (np.concatenate(xs) - np.asarray(pcg.LOW)) / (np.asarray(pcg.HIGH) - np.asarray(pcg.LOW))
+    lo, hi = pcg.PAPER_SPACE.low, pcg.PAPER_SPACE.high
+    x = (np.concatenate(xs) - lo) / (hi - lo)
     ts, ms = np.asarray(ts), np.asarray(ms)
     perplexity = float(min(30.0, max(1.0, (len(x) - 1) / 3)))
     with threadpool_limits(1):  # OpenMP threads beside XLA's pool were 20-50x slower on 2 busy cores

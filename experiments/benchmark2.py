@@ -135,7 +135,7 @@ def _parse(argv=None) -> argparse.Namespace:
                     "default: the scale's, 0 = the paper's reward)")
     ap.add_argument("--goal-cost", type=float, help="with --goal-axis: PPO learner penalty per squared tick of "
                     "distance to the episode's style goal (default 0 = off)")
-    ap.add_argument("--goal-axis", type=pcg.axis_arg, help="a style goal per episode at one end of this axis, 4 "
+    ap.add_argument("--goal-axis", type=pcg.env.axis_arg, help="a style goal per episode at one end of this axis, 4 "
                     "comma-separated signs in {-1,0,1} for range,cool_time,cast_time,coefficient (1,1,1,1 = heavy "
                     "vs light skills) (default: none)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")
@@ -266,7 +266,7 @@ def generated_rows(gens: dict) -> list[dict]:
     for m, g in gens.items():
         for i in range(len(g["target"])):
             rows.append({"method": m, "target": round(float(g["target"][i]), 6),
-                         **{p: float(g["skill"][i, j]) for j, p in enumerate(pcg.PARAM_NAMES)},
+                         **{p: float(g["skill"][i, j]) for j, p in enumerate(pcg.PAPER_SPACE.fields)},
                          "win_rate": float(g["win_rate"][i]), "gen_win_rate": float(g["gen_win_rate"][i]),
                          "edits": int(g["edits"][i]), "reached": int(bool(g["reached"][i]))})
     return rows

@@ -28,12 +28,15 @@ def test_the_paper_space_writes_what_with_player_skill_writes():
     game = pcg.base_game()
     sk = jnp.asarray([7.0, 0.55, 1.2, 0.8])
     a = PAPER_SPACE.apply(game, sk)
-    b = with_player_skill(game, **dict(zip(pcg.PARAM_NAMES, sk, strict=True)))
+    b = with_player_skill(game, **dict(zip(pcg.PAPER_SPACE.fields, sk, strict=True)))
     for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
-    np.testing.assert_array_equal(PAPER_SPACE.low, np.float32(pcg.LOW))
-    np.testing.assert_array_equal(PAPER_SPACE.high, np.float32(pcg.HIGH))
-    assert PAPER_SPACE.easier.tolist() == list(pcg.EASIER)
+    # The paper's four (GAME.md §10): range 1-20, cool time 0.5-0.6, cast time 0.5-1.5, coefficient
+    # 0.5-1; a longer range and a larger coefficient help the players, longer times hurt them.
+    assert PAPER_SPACE.fields == ("range", "cool_time", "cast_time", "coefficient")
+    np.testing.assert_array_equal(PAPER_SPACE.low, np.float32([1.0, 0.5, 0.5, 0.5]))
+    np.testing.assert_array_equal(PAPER_SPACE.high, np.float32([20.0, 0.6, 1.5, 1.0]))
+    assert PAPER_SPACE.easier.tolist() == [1.0, -1.0, -1.0, 1.0]
 
 
 def test_a_chosen_parameter_list_edits_exactly_those_fields_within_bounds():
@@ -45,8 +48,8 @@ def test_a_chosen_parameter_list_edits_exactly_those_fields_within_bounds():
     assert (space.low[7], space.high[7]) == tuple(map(float, STAT_SPECS["armor"][1]))
     assert space.easier.tolist() == [1, -1, -1, 1, 1, 1, -1, 1]  # a bigger boss is harder
 
-    edit = jax.jit(lambda s, a: pcg.apply_action(s, a, space))
-    skill = jnp.asarray(pcg.box_probes(space)[0])
+    edit = jax.jit(lambda s, a: pcg.env.apply_action(s, a, space))
+    skill = jnp.asarray(pcg.env.box_probes(space)[0])
     rng = np.random.default_rng(0)
     for _ in range(60):  # random walks hit every bound
         skill = edit(skill, jnp.asarray(rng.integers(0, 5, 8), jnp.int32))
@@ -91,8 +94,8 @@ def test_pcg_heuristic_moves_the_picked_parameter_toward_easier_in_any_space():
         st = state.replace(win_rate=jnp.float32(w), target=jnp.float32(0.5))
         for s in range(12):
             act = np.asarray(pcg.heuristic_policy(None, jax.random.PRNGKey(s), None, st, params))
-            (j,) = np.flatnonzero(act != pcg.NOOP_ACTION)
-            assert act[j] - pcg.NOOP_ACTION == sign * params.space.easier[j]
+            (j,) = np.flatnonzero(act != pcg.env.NOOP_ACTION)
+            assert act[j] - pcg.env.NOOP_ACTION == sign * params.space.easier[j]
     assert pcg.random_policy(None, jax.random.PRNGKey(1), None, state, params).shape == (8,)
 
 
@@ -105,7 +108,8 @@ def test_skill_gap_table_is_recomputed_from_the_raw_outputs(tmp_path):
     rng = np.random.default_rng(5)
     n = 56
     data = {"generator": np.repeat([0, 1], n // 2), "target": np.tile(np.repeat(pcg.metrics.TARGETS, 4), 2),
-            "skill": rng.uniform(pcg.LOW, pcg.HIGH, (n, 4)), "learned": rng.integers(0, 101, n) / 100,
+            "skill": rng.uniform(pcg.PAPER_SPACE.low, pcg.PAPER_SPACE.high, (n, 4)),
+            "learned": rng.integers(0, 101, n) / 100,
             "scripted": rng.integers(0, 101, n) / 100}
     np.savez(tmp_path / "generated.npz", generators=np.asarray(balance.GENERATORS), **data)
     rf = RunFolder(tmp_path, {"experiment": "test"})

@@ -12,22 +12,22 @@ import raidjax
 from raidjax import pcg, policies
 from raidjax.pcg import metrics as pm
 
-LOW, HIGH = np.array(pcg.LOW), np.array(pcg.HIGH)
+LOW, HIGH = np.array(pcg.PAPER_SPACE.low), np.array(pcg.PAPER_SPACE.high)
 TICK = (HIGH - LOW) / 6
 
 
 def test_ticks_and_clipping():
-    np.testing.assert_allclose(np.asarray(pcg.tick()), [19 / 6, 0.1 / 6, 1 / 6, 0.5 / 6], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(pcg.env.tick()), [19 / 6, 0.1 / 6, 1 / 6, 0.5 / 6], rtol=1e-6)
     mid = jnp.asarray((10.0, 0.55, 1.0, 0.75))
     for c, frac in enumerate((-1.0, -0.5, 0.0, 0.5, 1.0)):
-        out = np.asarray(pcg.apply_action(mid, jnp.full(4, c, jnp.int32)))
+        out = np.asarray(pcg.env.apply_action(mid, jnp.full(4, c, jnp.int32)))
         np.testing.assert_allclose(out, np.asarray(mid) + frac * TICK, rtol=1e-6)
     # Mixed branches.
-    out = np.asarray(pcg.apply_action(mid, jnp.array([0, 1, 3, 4])))
+    out = np.asarray(pcg.env.apply_action(mid, jnp.array([0, 1, 3, 4])))
     np.testing.assert_allclose(out, np.asarray(mid) + np.array([-1, -0.5, 0.5, 1]) * TICK, rtol=1e-6)
     # Clipped to bounds.
-    np.testing.assert_allclose(np.asarray(pcg.apply_action(jnp.asarray(HIGH - 0.1 * TICK), jnp.full(4, 4))), HIGH)
-    np.testing.assert_allclose(np.asarray(pcg.apply_action(jnp.asarray(LOW + 0.1 * TICK), jnp.full(4, 0))), LOW)
+    np.testing.assert_allclose(np.asarray(pcg.env.apply_action(jnp.asarray(HIGH - 0.1 * TICK), jnp.full(4, 4))), HIGH)
+    np.testing.assert_allclose(np.asarray(pcg.env.apply_action(jnp.asarray(LOW + 0.1 * TICK), jnp.full(4, 0))), LOW)
 
 
 @pytest.mark.parametrize("w, target, easier", [(0.2, 0.6, True), (0.8, 0.3, False)])
@@ -37,23 +37,23 @@ def test_heuristic_moves_each_parameter_the_right_way(w, target, easier):
     seen = set()
     for i in range(64):
         a = np.asarray(pcg.heuristic_policy(None, jax.random.key(i), None, st, p))
-        moved = np.flatnonzero(a != pcg.NOOP_ACTION)
+        moved = np.flatnonzero(a != pcg.env.NOOP_ACTION)
         assert moved.size == 1  # one parameter, half a tick
         j = int(moved[0])
         seen.add(j)
-        sign = pcg.EASIER[j] * (1 if easier else -1)
-        assert a[j] == pcg.NOOP_ACTION + sign and abs(a[j] - 2) == 1
-        new = np.asarray(pcg.apply_action(st.skill, jnp.asarray(a)))
+        sign = pcg.PAPER_SPACE.easier[j] * (1 if easier else -1)
+        assert a[j] == pcg.env.NOOP_ACTION + sign and abs(a[j] - 2) == 1
+        new = np.asarray(pcg.env.apply_action(st.skill, jnp.asarray(a)))
         np.testing.assert_allclose(new[j] - np.asarray(st.skill)[j], 0.5 * TICK[j] * sign, rtol=1e-5)
     assert seen == {0, 1, 2, 3}
     # Easier = range up, cool down, cast down, coefficient up.
-    assert pcg.EASIER == (1.0, -1.0, -1.0, 1.0)
+    assert pcg.PAPER_SPACE.easier.tolist() == [1.0, -1.0, -1.0, 1.0]
 
 
 def test_heuristic_idle_in_band_and_random_policy_range():
     p = pcg.make_pcg_params(n_games=4)
     a = pcg.heuristic_policy(None, jax.random.key(0), None, _state(target=0.5, w=0.51), p)
-    assert (np.asarray(a) == pcg.NOOP_ACTION).all()
+    assert (np.asarray(a) == pcg.env.NOOP_ACTION).all()
     acts = np.stack([np.asarray(pcg.random_policy(None, jax.random.key(i), None, None, p)) for i in range(50)])
     assert acts.min() == 0 and acts.max() == 4 and acts.shape == (50, 4)
 
@@ -63,10 +63,10 @@ def test_reward_sign_and_scale_on_win_rate_sequences():
     st = _state(target=0.5, w=0.1)  # w_0 measured at reset: no reward for it
     rewards = []
     for w in (0.3, 0.45, 0.7, 0.5, 0.5):
-        st, r = pcg.advance(st, st.skill, jnp.float32(w), p)
+        st, r = pcg.env.advance(st, st.skill, jnp.float32(w), p)
         rewards.append(float(r))
     np.testing.assert_allclose(rewards, [20.0, 15.0, -15.0, 20.0, 0.0], atol=1e-4)
-    assert float(pcg.reward_fn(0.5, 0.1, 0.5)) == pytest.approx(40.0, abs=1e-4)
+    assert float(pcg.env.reward_fn(0.5, 0.1, 0.5)) == pytest.approx(40.0, abs=1e-4)
     # The rewards telescope: sum = (|t - w_0| - |t - w_last|) * 100.
     assert sum(rewards) == pytest.approx(40.0, abs=1e-3)
 
@@ -75,25 +75,25 @@ def test_early_termination_and_strict_length():
     loose = pcg.make_pcg_params(n_games=4, max_edits=5)
     strict = pcg.make_pcg_params(n_games=4, max_edits=5, strict_length=True)
     st = _state(target=0.5, w=0.1)
-    s1, _ = pcg.advance(st, st.skill, jnp.float32(0.3), loose)
+    s1, _ = pcg.env.advance(st, st.skill, jnp.float32(0.3), loose)
     assert not bool(s1.done)
-    s2, _ = pcg.advance(s1, st.skill, jnp.float32(0.52), loose)  # |w - t| = 0.02 <= band
+    s2, _ = pcg.env.advance(s1, st.skill, jnp.float32(0.52), loose)  # |w - t| = 0.02 <= band
     assert bool(s2.done) and bool(s2.reached) and int(s2.edits) == 2
     s = st
     for i in range(5):
-        s, _ = pcg.advance(s, st.skill, jnp.float32(0.5), strict)
+        s, _ = pcg.env.advance(s, st.skill, jnp.float32(0.5), strict)
         assert bool(s.done) == (i == 4) and bool(s.reached)
     s = st
     for _ in range(5):
-        s, _ = pcg.advance(s, st.skill, jnp.float32(0.9), loose)
+        s, _ = pcg.env.advance(s, st.skill, jnp.float32(0.9), loose)
     assert bool(s.done) and not bool(s.reached)
 
 
 def test_observation_modes():
-    st = _state(skill=pcg.LOW, target=0.4, w=0.2)
-    o = pcg.observe_pcg(st, pcg.make_pcg_params(n_games=4))
+    st = _state(skill=pcg.PAPER_SPACE.low, target=0.4, w=0.2)
+    o = pcg.env.observe_pcg(st, pcg.make_pcg_params(n_games=4))
     np.testing.assert_allclose(np.asarray(o), [0, 0, 0, 0, 0.4, 0.2], atol=1e-6)
-    assert pcg.observe_pcg(st, pcg.make_pcg_params(n_games=4, observe_target=False)).shape == (4,)
+    assert pcg.env.observe_pcg(st, pcg.make_pcg_params(n_games=4, observe_target=False)).shape == (4,)
 
 
 
@@ -110,17 +110,17 @@ def test_ppo_config_rejects_bad_values_naming_the_field(field, value):
 def test_pool_repeats_pools_only_an_unchanged_skill():
     p = pcg.make_pcg_params(n_games=4, pool_repeats=True, strict_length=True)
     st = _state(target=0.5, w=0.25, games=4)
-    same, _ = pcg.advance(st, st.skill, jnp.float32(0.75), p)  # 1 + 3 wins of 8 games
+    same, _ = pcg.env.advance(st, st.skill, jnp.float32(0.75), p)  # 1 + 3 wins of 8 games
     assert float(same.games) == 8 and float(same.win_rate) == pytest.approx(0.5)
-    again, r = pcg.advance(same, st.skill, jnp.float32(1.0), p)  # 4 + 4 wins of 12 games
+    again, r = pcg.env.advance(same, st.skill, jnp.float32(1.0), p)  # 4 + 4 wins of 12 games
     assert float(again.games) == 12 and float(again.win_rate) == pytest.approx(8 / 12)
     assert float(r) == pytest.approx((0.0 - (8 / 12 - 0.5)) * 100, abs=1e-3)  # paid on the pooled rate
-    moved, _ = pcg.advance(again, st.skill + 1.0, jnp.float32(0.0), p)
+    moved, _ = pcg.env.advance(again, st.skill + 1.0, jnp.float32(0.0), p)
     assert float(moved.games) == 4 and float(moved.win_rate) == 0.0
-    off, _ = pcg.advance(st, st.skill, jnp.float32(0.75), pcg.make_pcg_params(n_games=4, strict_length=True))
+    off, _ = pcg.env.advance(st, st.skill, jnp.float32(0.75), pcg.make_pcg_params(n_games=4, strict_length=True))
     assert float(off.games) == 4 and float(off.win_rate) == pytest.approx(0.75)  # the paper's environment: no pooling
-    o = pcg.observe_pcg(again, p)
-    assert o.shape == (pcg.obs_size(p),) == (7,) and float(o[-1]) == pytest.approx(np.sqrt(100 / 12))
+    o = pcg.env.observe_pcg(again, p)
+    assert o.shape == (pcg.env.obs_size(p),) == (7,) and float(o[-1]) == pytest.approx(np.sqrt(100 / 12))
 
 
 def test_pooled_win_rate_is_mean_of_all_games_of_the_held_skill():
@@ -128,7 +128,7 @@ def test_pooled_win_rate_is_mean_of_all_games_of_the_held_skill():
     key = jax.random.key(7)
     _, st = pcg.reset(key, p)
     keys = jax.random.split(jax.random.key(8), 2)
-    hold = jnp.full(4, pcg.NOOP_ACTION, jnp.int32)
+    hold = jnp.full(4, pcg.env.NOOP_ACTION, jnp.int32)
     for k in keys:
         _, st, _, _, _ = pcg.step(k, st, hold, p)
     outcomes = [pcg.play_outcomes(k, p.game, st.skill, 8) for k in (jax.random.split(key)[1], *keys)]
@@ -144,7 +144,7 @@ def test_win_rate_is_mean_of_game_outcomes():
     assert wins.shape == (8,) and wins.dtype == bool
     assert float(pcg.measure(key, p, skill)) == pytest.approx(wins.mean())
     # The skill really is in every player's slot 1, speed 10 and cost 1.
-    g = pcg.skill_params(p.game, skill)
+    g = pcg.env.skill_params(p.game, skill)
     np.testing.assert_allclose(np.asarray(g.skills.range[:3, 0]), 20.0)
     np.testing.assert_allclose(np.asarray(g.skills.projectile_speed[:3, 0]), 10.0)
     np.testing.assert_allclose(np.asarray(g.skills.cost[:3, 0]), 1.0)
@@ -209,7 +209,7 @@ def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, goal):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     weights, _ = checkpoint.load_policy_weights(tmp_path)
     policy = make_generator_policy((8,), True)
-    obs = pcg.observe_pcg(_state(), pcg.make_pcg_params(n_games=2, pool_repeats=pool,
+    obs = pcg.env.observe_pcg(_state(), pcg.make_pcg_params(n_games=2, pool_repeats=pool,
                                                         goal_axis=cfg.goal_axis))
     assert obs.shape == (6 + pool + 4 * (goal > 0),)
     a = policy(weights, jax.random.key(1), obs, _state(), None)

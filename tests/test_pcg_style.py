@@ -20,8 +20,8 @@ def test_goal_observed_kept_through_edits_and_renewed_with_the_episode():
     o_off, st_off = pcg.reset(keys[0], off)
     np.testing.assert_array_equal(np.asarray(st.skill), np.asarray(st_off.skill))  # same skills and targets
     np.testing.assert_array_equal(np.asarray(st_off.goal), np.asarray(st_off.skill))  # off: the start
-    assert o.shape == (pcg.obs_size(on),) == (10,) and o_off.shape == (6,)
-    span = np.asarray(pcg.HIGH) - np.asarray(pcg.LOW)
+    assert o.shape == (pcg.env.obs_size(on),) == (10,) and o_off.shape == (6,)
+    span = np.asarray(pcg.PAPER_SPACE.high) - np.asarray(pcg.PAPER_SPACE.low)
     np.testing.assert_allclose(np.asarray(o[-4:]), (np.asarray(st.goal) - np.asarray(st.skill)) / span, atol=1e-6)
     _, st1, _, _, _ = pcg.step(jax.random.key(1), st, jnp.full(4, 4, jnp.int32), on)
     np.testing.assert_array_equal(np.asarray(st1.goal), np.asarray(st.goal))  # kept through edits
@@ -34,19 +34,20 @@ def test_goal_penalty_telescopes_to_the_change_of_distance_to_the_goal():
     from trainers.ppo_pcgrl import PPOConfig, edit_penalty
 
     cfg = PPOConfig(goal_cost=0.5, goal_axis=(1, 1, 1, 1))
-    goal = jnp.asarray(pcg.HIGH, jnp.float32).at[1].set(pcg.LOW[1])  # range, cast, coefficient high; cool low
+    # range, cast, coefficient high; cool low
+    goal = jnp.asarray(pcg.PAPER_SPACE.high, jnp.float32).at[1].set(pcg.PAPER_SPACE.low[1])
     st = _state(skill=(10.5, 0.55, 1.0, 0.75)).replace(goal=goal)
-    start_d2 = float(pcg.squared_ticks(st.skill, goal))
+    start_d2 = float(pcg.env.squared_ticks(st.skill, goal))
     total = 0.0
     for a in ([4, 0, 4, 4], [3, 2, 2, 0], [0, 4, 2, 2]):  # toward, partly back, away
         a = jnp.asarray(a, jnp.int32)
-        new = st.replace(skill=pcg.apply_action(st.skill, a))
+        new = st.replace(skill=pcg.env.apply_action(st.skill, a))
         step_cost = float(edit_penalty(cfg, a, st, new))
         if a[0] == 4:  # every parameter moved a tick toward its goal: the step pays (a reward)
             assert step_cost < 0
         total += step_cost
         st = new
-    assert total == pytest.approx(0.5 * (float(pcg.squared_ticks(st.skill, goal)) - start_d2), rel=1e-4)
+    assert total == pytest.approx(0.5 * (float(pcg.env.squared_ticks(st.skill, goal)) - start_d2), rel=1e-4)
     # by hand: the goal is 3 ticks from the start in every parameter (range 9.5 / (19/6), cool 0.05 /
     # (0.1/6), cast 0.5 / (1/6), coefficient 0.25 / (0.5/6)), so d^2 = 4 * 9 = 36 at the start.
     assert start_d2 == pytest.approx(36.0, rel=1e-4)
@@ -57,7 +58,8 @@ def test_goal_axis_draws_the_two_ends_and_leaves_unsigned_parameters_free():
 
     def goals(axis):
         p = pcg.make_pcg_params(n_games=2, goal_axis=axis)
-        return np.asarray(jax.vmap(lambda k: pcg.reset(k, p)[1].goal)(keys)) == np.asarray(pcg.HIGH, np.float32)
+        high = np.asarray(pcg.PAPER_SPACE.high, np.float32)
+        return np.asarray(jax.vmap(lambda k: pcg.reset(k, p)[1].goal)(keys)) == high
 
     heavy = goals((1, 1, 1, 1))
     assert (heavy.all(1) | (~heavy).all(1)).all()  # all high ("heavy") or all low ("light")
@@ -91,7 +93,7 @@ def test_goal_axis_in_the_learner_config_and_on_the_command_line():
     for bad in ({"goal_axis": (1, 1, 1, 1)}, {"goal_cost": 0.5}):  # a style goal needs both
         with pytest.raises(ValueError, match="a style goal needs both"):
             PPOConfig(**bad)
-    assert pcg.parse_axis("1,1,-1,0") == (1, 1, -1, 0)
+    assert pcg.env.parse_axis("1,1,-1,0") == (1, 1, -1, 0)
     assert _args(["--goal-cost", "1", "--goal-axis", "1,1,-1,0"]).goal_axis == (1, 1, -1, 0)
     for bad in ("1,1,1", "2,0,0,0", "a,b,c,d"):
         with pytest.raises(SystemExit):

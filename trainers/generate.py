@@ -35,7 +35,7 @@ def target_groups(config: PPOConfig, seeds: int) -> tuple[np.ndarray, list[tuple
 
 
 @cache
-def method_policy(hidden: tuple, greedy: bool = False, n_params: int = pcg.N_PARAMS):
+def method_policy(hidden: tuple, greedy: bool = False, n_params: int = pcg.env.N_PARAMS):
     """One generator policy for PPO, PCG-HR and PCG-RD, so that ``pcg.metrics.generate`` compiles
     once per episode count rather than once per method: ``policy({"net": weights, "method":
     int32[]}, key, obs, state, params) -> int32[n_params]`` with method 0 = PPO (``make_generator_policy(hidden,

@@ -76,7 +76,7 @@ def eval_contents(cfg: Config) -> dict[str, raidjax.Params]:
         return {f"{r:g}": raidjax.make_params(players=list(cfg.players), skill_range=r) for r in cfg.skill_ranges}
     space = pcg.make_space(cfg.parameters, cfg.players)
     base = pcg.base_game(cfg.players)
-    return {"/".join(f"{v:g}" for v in sk): space.apply(base, jnp.asarray(sk)) for sk in pcg.box_probes(space)}
+    return {"/".join(f"{v:g}" for v in sk): space.apply(base, jnp.asarray(sk)) for sk in pcg.env.box_probes(space)}
 
 
 def evaluate(out: Path, cfg: Config, n_seeds: int, key: jax.Array) -> dict:

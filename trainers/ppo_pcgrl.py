@@ -81,7 +81,7 @@ class PPOConfig:
             object.__setattr__(self, name, tuple(value))
         space = self.space  # checks the names against the team (ValueError naming the parameter)
         if self.goal_axis is not None:  # JSON gives a list; the env needs a hashable static field
-            object.__setattr__(self, "goal_axis", pcg.check_axis(self.goal_axis, space.size))
+            object.__setattr__(self, "goal_axis", pcg.env.check_axis(self.goal_axis, space.size))
         if (self.goal_axis is None) != (self.goal_cost == 0):
             raise ValueError(f"goal_cost: value {self.goal_cost} with goal_axis {self.goal_axis}: a style goal "
                              "needs both (goal_cost > 0 and an axis such as (1, 1, 1, 1)), or neither")
@@ -129,7 +129,7 @@ class ActorCritic(nn.Module):
     """MLP actor (``n_params`` branches x 5 logits) and MLP critic on a ``float32[D]`` observation."""
 
     hidden: tuple = (64, 64)
-    n_params: int = pcg.N_PARAMS
+    n_params: int = pcg.env.N_PARAMS
 
     @nn.compact
     def __call__(self, x):
@@ -139,10 +139,10 @@ class ActorCritic(nn.Module):
                 h = nn.tanh(nn.Dense(n, kernel_init=nn.initializers.orthogonal(np.sqrt(2)), name=f"{name}{i}")(h))
             return h
 
-        logits = nn.Dense(self.n_params * pcg.N_CHOICES, kernel_init=nn.initializers.orthogonal(0.01),
+        logits = nn.Dense(self.n_params * pcg.env.N_CHOICES, kernel_init=nn.initializers.orthogonal(0.01),
                           name="pi")(mlp(x, "a"))
         value = nn.Dense(1, kernel_init=nn.initializers.orthogonal(1.0), name="v")(mlp(x, "c"))
-        return logits.reshape(x.shape[:-1] + (self.n_params, pcg.N_CHOICES)), value[..., 0]
+        return logits.reshape(x.shape[:-1] + (self.n_params, pcg.env.N_CHOICES)), value[..., 0]
 
 
 class Transition(NamedTuple):
@@ -177,9 +177,9 @@ def edit_penalty(config: PPOConfig, action: jax.Array, old: pcg.PCGState, new: p
     from ``old`` to ``new`` (``PCGState`` with matching batch shape); over an episode the goal part
     sums to ``goal_cost`` times the final minus the start squared distance to the goal.
     Returns ``float32[...]`` (meaningless on reset transitions, which the learner masks)."""
-    ticks = jnp.abs(jnp.asarray(pcg.TICK_FRACTIONS)[action]).sum(-1)
+    ticks = jnp.abs(jnp.asarray(pcg.env.TICK_FRACTIONS)[action]).sum(-1)
     space = config.space
-    to_goal = pcg.squared_ticks(new.skill, new.goal, space) - pcg.squared_ticks(old.skill, old.goal, space)
+    to_goal = pcg.env.squared_ticks(new.skill, new.goal, space) - pcg.env.squared_ticks(old.skill, old.goal, space)
     return config.edit_cost * ticks + config.goal_cost * to_goal
 
 
@@ -227,7 +227,7 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
     def init(key, target=None):
         p = env_params(config, target, tester, tester_weights)
         k_net, k_env, k_run = jax.random.split(key, 3)
-        params = net.init(k_net, jnp.zeros((pcg.obs_size(p),)))
+        params = net.init(k_net, jnp.zeros((pcg.env.obs_size(p),)))
         obs, env_state = jax.vmap(lambda k: pcg.reset(k, p))(jax.random.split(k_env, config.n_arenas))
         return {"params": params, "opt_state": tx.init(params), "env_state": env_state, "obs": obs,
                 "key": jax.random.key_data(k_run), "update": jnp.int32(0)}
@@ -314,7 +314,7 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
 
 
 @cache
-def make_generator_policy(hidden: tuple, greedy: bool = False, n_params: int = pcg.N_PARAMS):
+def make_generator_policy(hidden: tuple, greedy: bool = False, n_params: int = pcg.env.N_PARAMS):
     """Generator policy ``policy(net_params, key, obs, state, params) -> int32[n_params]`` for
     ``raidjax.pcg.metrics.generate`` (cached, so the same hashable function is reused and jit does
     not recompile). ``greedy`` takes the argmax of each branch (the paper's generation);

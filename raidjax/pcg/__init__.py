@@ -8,52 +8,25 @@ generation runs with the controllability / diversity metrics (``raidjax.pcg.metr
     obs, state, reward, done, info = pcg.step(key, state, action, params)
 """
 
-from raidjax.pcg import metrics, space
+from raidjax.pcg import env, metrics, space
 from raidjax.pcg.baselines import heuristic_policy, random_policy
 from raidjax.pcg.env import (
-    EASIER,
-    HEAVY_VS_LIGHT,
-    HIGH,
-    LOW,
-    N_CHOICES,
-    N_PARAMS,
-    NOOP_ACTION,
-    PARAM_NAMES,
-    TICK_FRACTIONS,
     PCGParams,
     PCGState,
-    advance,
-    apply_action,
-    axis_arg,
     base_game,
-    box_grid,
-    box_probes,
-    check_axis,
-    draw_goal,
-    high,
     in_band,
-    low,
     make_pcg_params,
     measure,
-    obs_size,
-    observe_pcg,
-    parse_axis,
     play_outcomes,
     reset,
-    reward_fn,
-    skill_params,
-    squared_ticks,
     step,
     step_autoreset,
-    tick,
 )
 from raidjax.pcg.space import PAPER_SPACE, Space, make_space, parse_space
 
+# What users call; the environment's building blocks stay in ``raidjax.pcg.env``.
 __all__ = [
-    "EASIER", "HEAVY_VS_LIGHT", "HIGH", "LOW", "N_CHOICES", "N_PARAMS", "NOOP_ACTION", "PARAM_NAMES", "PAPER_SPACE",
-    "Space", "TICK_FRACTIONS", "PCGParams", "PCGState", "advance", "apply_action", "axis_arg", "base_game",
-    "box_grid", "box_probes", "check_axis", "draw_goal",
-    "heuristic_policy", "high", "in_band", "low", "make_pcg_params", "make_space", "measure", "metrics", "obs_size",
-    "observe_pcg", "parse_axis", "parse_space", "play_outcomes", "random_policy", "reset", "reward_fn", "skill_params",
-    "space", "squared_ticks", "step", "step_autoreset", "tick",
+    "PAPER_SPACE", "Space", "PCGParams", "PCGState", "base_game", "heuristic_policy", "random_policy", "in_band",
+    "make_pcg_params", "make_space", "measure", "parse_space", "play_outcomes", "reset", "step", "step_autoreset",
+    "env", "metrics", "space",
 ]

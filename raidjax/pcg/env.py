@@ -44,12 +44,7 @@ from raidjax.pcg.space import PAPER_SPACE, Space, make_space
 from raidjax.playtest import auto_games_per_arena, check_args, playtest
 from raidjax.types import WIN, Params
 
-PARAM_NAMES = ("range", "cool_time", "cast_time", "coefficient")
-LOW = (1.0, 0.5, 0.5, 0.5)
-HIGH = (20.0, 0.6, 1.5, 1.0)
-# +1 where a larger value makes the skill stronger ("easier" for the players).
-EASIER = (1.0, -1.0, -1.0, 1.0)
-N_PARAMS, N_CHOICES = 4, 5
+N_PARAMS, N_CHOICES = PAPER_SPACE.size, 5
 NOOP_ACTION = 2  # choice 2 = 0 ticks on a branch
 TICK_FRACTIONS = (-1.0, -0.5, 0.0, 0.5, 1.0)
 HEAVY_VS_LIGHT = (1, 1, 1, 1)  # a style axis: all four parameters high, or all four low
@@ -94,7 +89,7 @@ class PCGParams:
             their upper bound and the -1 ones at their lower bound, or the reverse (one coin); a
             0-signed parameter gets its own coin. The observation then ends with the scaled offset
             ``(goal - skill) / (high - low)``. ``HEAVY_VS_LIGHT`` has two strengthening and two
-            weakening parameters (``EASIER``), so both ends suit any target.
+            weakening parameters (``Space.easier``), so both ends suit any target.
         tester: the playtesting team (static): a hashable ``policy(key, obs, state, params) ->
             int32[P]`` (default PT-HR, ``raidjax.policies.heuristic``, the paper's), or, with
             ``tester_weights``, ``policy(weights, key, obs, state, params)`` (e.g. a trained
@@ -171,7 +166,7 @@ def check_axis(goal_axis, size: int = N_PARAMS) -> tuple[int, ...] | None:
     axis = tuple(goal_axis)
     if len(axis) != size or any(v not in (-1, 0, 1) for v in axis):
         raise ValueError(f"goal_axis: value {goal_axis} must be {size} signs, each -1, 0 or +1 "
-                         f"(one per edited parameter{', ' + str(PARAM_NAMES) if size == N_PARAMS else ''})")
+                         f"(one per edited parameter{', ' + str(PAPER_SPACE.fields) if size == N_PARAMS else ''})")
     return tuple(int(v) for v in axis)
 
 
@@ -182,7 +177,7 @@ def parse_axis(text: str) -> tuple[int, ...]:
         signs = tuple(int(v) for v in text.split(","))
     except ValueError:
         raise ValueError(f"goal_axis: value {text!r} must be {N_PARAMS} comma-separated signs, each -1, 0 or 1 "
-                         f"(for {','.join(PARAM_NAMES)})") from None
+                         f"(for {','.join(PAPER_SPACE.fields)})") from None
     return check_axis(signs)
 
 

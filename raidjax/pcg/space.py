@@ -61,7 +61,7 @@ class Space:
     """An ordered, hashable set of ``Knob``s (a static field of ``PCGParams``).
 
     Attributes (arrays of length ``K = size``): ``low``, ``high``, ``easier`` (``float32[K]``),
-    ``names`` (``tuple[str]``).
+    ``names`` (``tuple[str]``, the parameters as written) and ``fields`` (the content fields).
     """
 
     knobs: tuple[Knob, ...]
@@ -73,6 +73,11 @@ class Space:
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(k.name for k in self.knobs)
+
+    @property
+    def fields(self) -> tuple[str, ...]:
+        """The content field each knob writes (``"range"``, ``"max_hp"``, ...)."""
+        return tuple(k.field for k in self.knobs)
 
     @property
     def low(self) -> np.ndarray:

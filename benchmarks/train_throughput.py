@@ -83,6 +83,7 @@ def env_only(cfg, repeats: int) -> float:
 
     n, n_players = cfg.n_arenas, len(cfg.players)
     one = raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0])
+    one = raidjax.with_senses(one, cfg.senses)
     params = jax.tree.map(lambda x: jax.numpy.broadcast_to(x, (n,) + x.shape), one)  # per arena, as in training
     step_all = jax.vmap(raidjax.step_autoreset)
 
@@ -92,7 +93,7 @@ def env_only(cfg, repeats: int) -> float:
         def body(carry, _):
             state, key = carry
             key, k_act, k_step = jax.random.split(key, 3)
-            acts = jax.random.randint(k_act, (n, n_players), 0, raidjax.N_ACTIONS)
+            acts = jax.random.randint(k_act, (n, n_players), 0, one.config.n_actions)
             _, state, reward, _, _ = step_all(jax.random.split(k_step, n), state, acts, params)
             return (state, key), reward.sum()
 
@@ -112,7 +113,8 @@ def minibatch_flops(trainer, runner) -> float:
 
     cfg = trainer.config
     b = cfg.decisions_per_update // cfg.n_minibatches
-    one = raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0])
+    one = raidjax.with_senses(raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0]),
+                              cfg.senses)
     obs, _ = jax.vmap(raidjax.reset, (0, None))(jax.random.split(jax.random.PRNGKey(0), b), one)
     p = len(cfg.players)
     batch = Batch(obs, jnp.zeros((b, p), jnp.int32), jnp.zeros((b, p)), jnp.ones((b, p), bool), jnp.zeros(b),

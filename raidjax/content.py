@@ -9,7 +9,7 @@ silently.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import fields
 
 import jax.numpy as jnp
@@ -303,6 +303,15 @@ def with_senses(params: Params, senses: str) -> Params:
     if params.config.observation == senses and params.config.action_space == senses:
         return params
     return params.replace(config=params.config.replace(observation=senses, action_space=senses))
+
+
+def sensed_by(params: Params, policy: Callable) -> Params:
+    """``params`` played with the senses ``policy`` declares: a policy object with a ``senses``
+    attribute (``"raidjax"`` or ``"reference"``, e.g. a trained ``trainers.mapoca.TeamPolicy``)
+    observes and acts that way whatever the content's config says (``raidjax.with_senses``);
+    other policies play the content as it is."""
+    senses = getattr(policy, "senses", None)
+    return params if senses is None else with_senses(params, senses)
 
 
 def default_params() -> Params:

@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from raidjax.content import sensed_by
 from raidjax.env import reset, step
 from raidjax.types import HALF_ARENA, RUNNING, Params, State
 
@@ -81,7 +82,8 @@ def record_episode(key: jax.Array, params: Params, policy: Callable, n_decisions
         key: PRNG key.
         params: one arena's ``Params`` (vmap this function for a batch).
         policy: ``policy(key, obs, state, params) -> int32[P]``, or with ``weights``
-            ``policy(weights, key, obs, state, params)``.
+            ``policy(weights, key, obs, state, params)``; a policy with a ``senses`` attribute plays
+            with those senses (``raidjax.content.sensed_by``).
         n_decisions: trace length ``T``; decisions after the episode ended repeat the final
             state with ``running = False``.
         weights: ``None`` or the policy's weights (a pytree of arrays; under ``jit`` with
@@ -91,6 +93,7 @@ def record_episode(key: jax.Array, params: Params, policy: Callable, n_decisions
         ``(trace, summary)``: ``Trace`` with leading axis ``T + 1`` (the reset state first) and
         ``episode_summary`` of the final state.
     """
+    params = sensed_by(params, policy)  # a trained team plays with the senses it learned on
     k_reset, k_play = jax.random.split(key)
     obs, state = reset(k_reset, params)
     n_players = params.team.shape[-1] - 1

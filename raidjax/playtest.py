@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 
 from raidjax import validate
-from raidjax.content import with_senses
+from raidjax.content import sensed_by
 from raidjax.env import next_episode, reset, step
 from raidjax.logs import HEATMAP_BINS, episode_summary, grid_cell
 from raidjax.sharding import shard_batch
@@ -31,15 +31,6 @@ def bind(policy: Policy, weights):
     if weights is None:
         return policy
     return lambda key, obs, state, params: policy(weights, key, obs, state, params)
-
-
-def sensed_by(params: Params, policy: Policy) -> Params:
-    """``params`` played with the senses ``policy`` declares: a policy object with a ``senses``
-    attribute (``"raidjax"`` or ``"reference"``, e.g. a trained ``trainers.mapoca.TeamPolicy``)
-    observes and acts that way whatever the content's config says (``raidjax.with_senses``);
-    other policies play the content as it is."""
-    senses = getattr(policy, "senses", None)
-    return params if senses is None else with_senses(params, senses)
 
 
 def check_args(params: Params, n_games, policy: Policy | None = None, weights=None) -> int:
@@ -199,7 +190,7 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weigh
             ``raidjax.policies.heuristic``); it must be hashable (a function, not a lambda
             rebuilt every call, to avoid recompiling). With ``weights``, it is called
             ``policy(weights, key, obs, state, params)``. A policy with a ``senses`` attribute
-            plays with those senses (``sensed_by``).
+            plays with those senses (``raidjax.content.sensed_by``).
         n_games: number of measured games, a whole number >= 1 (static: one compilation per value).
         weights: ``None``, or the policy's weights (a pytree of arrays). They are an argument of
             the compiled program, not constants in it, so evaluating many checkpoints of one

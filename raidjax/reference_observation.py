@@ -34,6 +34,7 @@ BUFFER_ROW = 9  # one teammate's row in the BufferSensor
 N_RAYS = 21  # RaysPerDirection 10 on each side of the forward ray
 RAY_LENGTH = 20.0
 CAST_RADIUS = 0.5  # SphereCastRadius
+PREFAB_RADIUS = 0.2  # the trigger sphere every pooled projectile carries (DefaultProjectile.prefab)
 POS_SCALE = VEL_SCALE = RANGE_SCALE = 20.0  # RaidPlayerAgent's normalisation factors
 COOL_SCALE = CAST_SCALE = 5.0
 HP_SCALE = DAMAGE_SCALE = 100.0
@@ -207,7 +208,10 @@ def observe_reference(state: State, params: Params, table: jax.Array, action_mas
     # fixed spawns is constant): folding them took 27 s of compile for 8192 arenas, not 1 ms of work.
     pos, heading, centres, live = jax.lax.optimization_barrier((state.pos, state.heading, p.pos, p.live))
     origin, dirs = pos[:n_players], ray_directions(heading[:n_players])
-    radii = pick(table, source_index(p.owner, p.slot, params.skills.in_use.shape[1]))[:, F_RADIUS]
+    # Every pooled projectile also carries the prefab's 0.2 sphere (DefaultProjectile.prefab): the
+    # larger of the two co-centred spheres is what a ray meets.
+    radii = jnp.maximum(pick(table, source_index(p.owner, p.slot, params.skills.in_use.shape[1]))[:, F_RADIUS],
+                        PREFAB_RADIUS)
     proj_rays = encode_rays(sphere_distances(origin, dirs, centres, radii, live))
     wall_rays = encode_rays(wall_distances(origin, dirs))
     seen = alive[:, None]

@@ -340,7 +340,7 @@ class Observation:
     projectiles: jax.Array  # float32[P, K, 6]
     projectile_mask: jax.Array  # bool[P, K]
     walls: jax.Array  # float32[P, 4]
-    action_mask: jax.Array  # bool[P, N_ACTIONS]
+    action_mask: jax.Array  # bool[P, A], A = config.n_actions (10, or 8 under the reference action space)
     alive: jax.Array  # bool[P]
 
     def flat(self) -> jax.Array:

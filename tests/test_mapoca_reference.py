@@ -18,7 +18,8 @@ from trainers.mapoca import load_policy, make_trainer
 from trainers.networks import Actor, Critic
 
 TINY = PRESETS["cpu"].replace(n_arenas=4, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1,
-                              heads=2, updates_per_chunk=2, total_steps=4 * 8 * 2, eval_games=4, senses="reference")
+                              heads=2, updates_per_chunk=2, total_steps=4 * 8 * 2, eval_games=4, senses="reference",
+                              skill_ranges=(5.0, 17.0), redraw_every=1)  # the redraw path restarts the stack
 FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
 
 
@@ -63,3 +64,6 @@ def test_train_checkpoint_and_playtest_with_reference_senses(tmp_path):
     # The content is made with raidjax's senses; the policy plays it with its own.
     out = raidjax.playtest(jax.random.key(3), raidjax.make_params(skill_range=13.0), policy, 2, weights=w)
     assert out["outcome"].shape == (2,) and set(np.asarray(out["outcome"]).tolist()) <= {1, 2, 3}
+    # A replay (raidjax render --policy RUN) records it with its senses too.
+    trace, _ = raidjax.logs.record_episode(jax.random.key(4), raidjax.make_params(), policy, 3, w)
+    assert trace.actions.shape == (4, 3) and int(np.asarray(trace.actions).max()) < 8

@@ -71,6 +71,15 @@ def test_wall_dead_ahead(gap):
     np.testing.assert_allclose(r[0], [1.0, 0.0, (gap - 0.5) / 20], rtol=1e-5)
 
 
+def test_wall_off_axis_ray():
+    p = ref_params()
+    gap = 3.0
+    s = scenario(p, players=((0.0, 12.25 - gap), (-5.0, -5.0), (5.0, -5.0)), boss=(0.0, -11.0), headings=(UP, UP, UP))
+    # Ray 1 is 7 degrees off the wall's normal: the sphere travels (gap - 0.5) / cos 7.
+    expect = (gap - 0.5) / math.cos(math.radians(7.0)) / 20
+    np.testing.assert_allclose(rays(OBSERVE(s, p).wall_rays)[1], [1.0, 0.0, expect], rtol=1e-5)
+
+
 def test_wall_beyond_ray_length_is_a_miss():
     p = ref_params()
     s = scenario(p, players=((0.0, -10.0), (-5.0, -5.0), (5.0, -5.0)), boss=(0.0, 8.0), headings=(UP, UP, UP))
@@ -96,6 +105,8 @@ def test_overlapping_projectile_is_not_reported():
     s = scenario(p, players=((0.0, -5.0), (-8.0, -8.0), (8.0, -8.0)), boss=(0.0, 8.0), headings=(UP, UP, UP))
     s = with_projectile(s, (0.0, -4.6))  # 0.4 ahead: inside r + 0.5 where the cast starts
     assert not np.asarray(OBSERVE(s, p).projectile_rays[0]).reshape(21, 3)[:, 0].any()
+    s = with_projectile(s, (0.0, -3.0))  # the same projectile 2 ahead is seen
+    assert rays(OBSERVE(s, p).projectile_rays)[0, 0] == 1.0
 
 
 def test_own_missiles_are_seen_too():
@@ -117,6 +128,18 @@ def test_stack_shifts_once_per_decision_and_starts_zeroed():
         np.testing.assert_array_equal(new[:, :3], stack[:, 1:])
         np.testing.assert_allclose(new[:, 3], ro.vector(s2, p), rtol=1e-6, atol=1e-9)
         s, stack = s2, new
+
+
+def test_next_episode_restarts_the_stack():
+    p = ref_params(passive_boss=False)
+    _, s = raidjax.reset(KEY, p)
+    for i in range(5):
+        _, s, *_ = STEP(jax.random.key(i), s, jnp.array([1, 5, 3]), p)
+    assert np.asarray(s.memory.stack)[:, 0].any()  # full after 5 decisions
+    _, fresh = raidjax.next_episode(jax.random.key(9), s, p)
+    stack = np.asarray(fresh.memory.stack)
+    assert not stack[:, :3].any()
+    np.testing.assert_allclose(stack[:, 3], ro.vector(fresh, p), rtol=1e-6, atol=1e-9)
 
 
 def test_vector_layout():

@@ -41,6 +41,7 @@ import raidjax
 from raidjax import pcg
 from raidjax.content import with_player_skill
 from raidjax.env import team_reward
+from raidjax.reference_observation import start_memory
 from raidjax.types import WIN, Observation, Params, State
 from trainers import checkpoint
 from trainers.config import Config
@@ -329,7 +330,12 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         skills = runner.skills
         if multi_range:  # arenas that drew a new skill re-observe their new episode under it
             skills = jnp.where(redrawn[:, None], draw_skills(k_rng, cfg, runner.range_set, n), skills)
-            fresh = jax.vmap(raidjax.observe)(state, env_params_of(runner.content, skills))
+            drawn = env_params_of(runner.content, skills)
+            if cfg.senses == "reference":  # the stacked vector shows the skill: restart it under the new one
+                restarted = jax.vmap(start_memory)(state, drawn)
+                state = jax.tree.map(lambda a, b: jnp.where(redrawn.reshape((n,) + (1,) * (a.ndim - 1)), a, b),
+                                     restarted, state)
+            fresh = jax.vmap(raidjax.observe)(state, drawn)
             nxt = jax.tree.map(lambda a, b: jnp.where(redrawn.reshape((n,) + (1,) * (a.ndim - 1)), a, b), fresh, nxt)
         reward = team_reward(info, done)
         ep_ret, ep_len = runner.ep_return + reward, runner.ep_length + 1

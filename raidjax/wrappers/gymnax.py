@@ -129,9 +129,10 @@ class RaidTeamEnv(_RaidView):
     def observation_space(self, params: Params | None = None) -> gspaces.Box:
         return gspaces.Box(-jnp.inf, jnp.inf, (self.n_players * self.obs_dim,), jnp.float32)
 
-    def decode(self, action: jax.Array) -> jax.Array:
-        """Joint id ``int[]`` -> ``int32[P]`` per-player actions (player 0 the lowest digit)."""
-        a = self.default_params.config.n_actions
+    def decode(self, action: jax.Array, params: Params | None = None) -> jax.Array:
+        """Joint id ``int[]`` -> ``int32[P]`` per-player actions (player 0 the lowest digit), in the
+        action space of ``params`` (default: the constructor's)."""
+        a = (self.default_params if params is None else params).config.n_actions
         return (action // a ** jnp.arange(self.n_players)) % a
 
     def _observation(self, obs: Observation) -> jax.Array:
@@ -140,7 +141,7 @@ class RaidTeamEnv(_RaidView):
     def _actions(self, key, action, obs, state):
         if action.shape != ():
             raise ValueError(f"action: shape {list(action.shape)}; allowed: one joint id (shape [])")
-        return self.decode(action.astype(jnp.int32))
+        return self.decode(action.astype(jnp.int32), state.params)
 
     def _reward(self, reward, info):
         return team_reward(info, info["terminated"])

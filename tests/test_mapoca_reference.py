@@ -67,3 +67,14 @@ def test_train_checkpoint_and_playtest_with_reference_senses(tmp_path):
     # A replay (raidjax render --policy RUN) records it with its senses too.
     trace, _ = raidjax.logs.record_episode(jax.random.key(4), raidjax.make_params(), policy, 3, w)
     assert trace.actions.shape == (4, 3) and int(np.asarray(trace.actions).max()) < 8
+
+
+def test_a_run_saved_before_senses_existed_still_resumes(tmp_path):
+    from trainers.runfolder import RunFolder, RunFolderError
+
+    old = Config().to_dict()
+    del old["senses"]  # as every run folder saved before the field existed
+    RunFolder(tmp_path / "run", {"config": old})
+    RunFolder(tmp_path / "run", {"config": Config().to_dict()}, resume=True)  # raidjax senses: the same run
+    with pytest.raises(RunFolderError, match=r'config.senses: saved null, now "reference"'):
+        RunFolder(tmp_path / "run", {"config": Config(senses="reference").to_dict()}, resume=True)

@@ -44,11 +44,19 @@ class RunFolderError(ValueError):
     """A run folder refused: the message names the folder and what to do."""
 
 
+# Settings added after run folders were first saved, with the value every older run played with:
+# a saved run without the key resumes as long as the new value is that one.
+ADDED_SETTINGS = {"senses": "raidjax"}
+
+
 def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:
-    """``"key: saved X, now Y"`` for every (nested) setting that differs."""
+    """``"key: saved X, now Y"`` for every (nested) setting that differs (``ADDED_SETTINGS``
+    missing from the saved side count as their old value)."""
     out = []
     for k in sorted(set(old) | set(new)):
         a, b = old.get(k), new.get(k)
+        if k not in old and k in ADDED_SETTINGS and b == ADDED_SETTINGS[k]:
+            continue
         if isinstance(a, dict) and isinstance(b, dict):
             out += _differences(a, b, f"{prefix}{k}.")
         elif a != b:

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import catalogue, validate
-from raidjax.types import N_SLOTS, EnvConfig, Params, Skills, Stats
+from raidjax.types import N_SLOTS, SENSES, EnvConfig, Params, Skills, Stats
 
 # name: (kind, player range, boss range, player default, boss default).
 # kind "int" values must be whole numbers. Neutral values reproduce the reference game.
@@ -299,7 +299,7 @@ def with_senses(params: Params, senses: str) -> Params:
     Raises:
         ValueError: ``senses`` not one of those names (one line).
     """
-    validate.name("senses", senses, ("raidjax", "reference"), "observation and action space")
+    validate.name("senses", senses, SENSES, "observation and action space")
     if params.config.observation == senses and params.config.action_space == senses:
         return params
     return params.replace(config=params.config.replace(observation=senses, action_space=senses))

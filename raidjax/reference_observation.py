@@ -188,7 +188,7 @@ def remember(state: State, params: Params) -> State:
     """
     m = state.memory
     state = state.replace(memory=m.replace(cooldown_unstarted=m.cooldown_unstarted & ~state.recharging))
-    stack = jnp.concatenate([m.stack[:, 1:], vector(state, params)[:, None]], axis=1)
+    stack = jnp.concatenate([m.stack[:, 1:], vector(state, params)[:, None]], axis=1)  # vector reads the flags
     return state.replace(memory=state.memory.replace(stack=stack))
 
 

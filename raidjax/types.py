@@ -36,10 +36,9 @@ ACTION_HEURISTIC = N_ACTIONS
 # no mask (RaidPlayerAgent.cs, GAME.md §4). Reference id k plays raidjax action REFERENCE_ACTIONS[k]:
 # the reference's 3 turns clockwise seen from above (right) and 4 anticlockwise, the reverse of ours.
 REFERENCE_ACTIONS = (NOOP, FORWARD, BACKWARD, ROTATE_RIGHT, ROTATE_LEFT, STRAFE_LEFT, STRAFE_RIGHT, CAST_1)
-# What players observe (``EnvConfig.observation``) and how they act (``EnvConfig.action_space``):
-# raidjax's own (the default) or the reference build's (GAME.md §8).
-OBSERVATIONS = ("raidjax", "reference")
-ACTION_SPACES = ("raidjax", "reference")
+# The players' senses, what they observe (``EnvConfig.observation``) and how they act
+# (``EnvConfig.action_space``): raidjax's own (the default) or the reference build's (GAME.md §8).
+SENSES = ("raidjax", "reference")
 
 # Outcomes (``State.result`` / ``info["result"]``).
 RUNNING, WIN, LOSS, DRAW = 0, 1, 2, 3
@@ -142,8 +141,8 @@ class EnvConfig:
                              f"{fixed['max_projectiles']}; allowed: a whole number in [1, max_projectiles]")
         for name in (*RULE_SWITCHES, "random_spawns"):
             fixed[name] = validate.flag(name, getattr(self, name))
-        validate.name("observation", self.observation, OBSERVATIONS, "observation")
-        validate.name("action_space", self.action_space, ACTION_SPACES, "action space")
+        validate.name("observation", self.observation, SENSES, "observation")
+        validate.name("action_space", self.action_space, SENSES, "action space")
         for name, value in fixed.items():  # frozen: set through object (hash and == see Python values)
             object.__setattr__(self, name, value)
 

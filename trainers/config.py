@@ -13,6 +13,7 @@ import math
 from pathlib import Path
 
 from raidjax import catalogue, pcg, validate
+from raidjax.types import SENSES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -133,7 +134,7 @@ class Config:
             raise ValueError(f"players: value {list(self.players)}; allowed: 1-8 names of {sorted(catalogue.CLASSES)}")
         if self.content_box:
             pcg.make_space(self.parameters, self.players)  # ValueError naming a bad parameter
-        validate.name("senses", self.senses, ("raidjax", "reference"), "observation and action space")
+        validate.name("senses", self.senses, SENSES, "observation and action space")
         if self.hidden % self.heads:
             raise ValueError(f"heads: value {self.heads} must divide hidden = {self.hidden}")
 

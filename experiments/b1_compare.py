@@ -83,6 +83,9 @@ def main(argv=None) -> None:
     if len(args.labels) != len(args.folders):
         ap.error(f"--labels: {len(args.labels)} labels for {len(args.folders)} folders; allowed: one per folder")
     folders = [Path(f) for f in args.folders]
+    missing = [str(f / "train" / "metrics.csv") for f in folders if not (f / "train" / "metrics.csv").exists()]
+    if missing:
+        ap.error(f"folders: {missing[0]} does not exist; allowed: Benchmark 1 run folders or their copies")
     figure([curves(f) for f in folders], args.labels).savefig(args.out, dpi=120)
     if all((f / "csv" / "win_rate_table.csv").exists() for f in folders):
         print(markdown([win_table(f) for f in folders], args.labels))

@@ -52,7 +52,10 @@ def main(argv=None) -> None:
     ap.add_argument("tables", nargs="+", help="raidjax.calibrate --json files, one per seed")
     ap.add_argument("--out", required=True, help="the PNG to write")
     args = ap.parse_args(argv)
-    tables = [json.loads(Path(p).read_text()) for p in args.tables]
+    try:
+        tables = [json.loads(Path(p).read_text()) for p in args.tables]
+    except (OSError, json.JSONDecodeError) as e:
+        ap.error(f"tables: cannot read a raidjax.calibrate --json file ({e})")
     figure(tables).savefig(args.out, dpi=120)
     print(args.out)
 

@@ -99,11 +99,14 @@ SCALES = {
                                           hidden=(16, 16), n_games=8, max_edits=6),
                    seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=16, decisions=4,
                    fast_compile=True),
-    # About 8 M PT-HR games under the reference rules, a GPU job (docs/RESULTS.md): the cpu preset (one
-    # model for all targets, target observed; N = 50 games per training measurement, 20 480 steps), 12
-    # episodes per target and method with 100-game generator measurements (raidjax protocol) or 300-game
-    # ones (paper protocol), and the 300-game final measurement of GAME.md §11.
-    "cpu": Scale(preset="cpu", ppo=dict(total_steps=20480), seeds=1, chunk=5, episodes=12, parts=6,
+    # Sized to finish within 3 hours on a 2-core CPU (the paper protocol: 40-decision episodes,
+    # 300-game measurements, greedy PPO): the cpu preset (one model for all targets, target observed;
+    # N = 50 games per training measurement) trained for 10 240 generator steps (paper: 20 000 per
+    # model, one model per target and seed), 6 episodes per target and method (paper: 5 000 skills per
+    # target, 300 kept). About 2 M PT-HR games; at 20 480 steps and 12 episodes it was over 4 hours
+    # (training measured at ~113 games/s on this CPU: 32 episodes x 50 games are too few arenas to
+    # fill its vectors).
+    "cpu": Scale(preset="cpu", ppo=dict(total_steps=10240), seeds=1, chunk=5, episodes=6, parts=6,
                  gen_games=100, eval_games=300),
     # The paper's budgets: one model per fixed (unobserved) target, 5 seeds, 20 000 steps, N = 100
     # in training and 300 in evaluation, 5 models x 1 000 skills per target (paper §5.3; PCG-HR and

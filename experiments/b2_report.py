@@ -2,7 +2,7 @@
 and the t-SNE / controllability / error-vs-diversity figures, from the generated skills of
 ``experiments.benchmark2``.
 
-Metrics are numpy (``raidjax.pcg_metrics`` through ``trainers.ppo_pcgrl_cli.summarize``); the
+Metrics are numpy (``raidjax.pcg.metrics``); the
 paper's numbers are transcribed from its Tables "controllability" and "diversity" (RaidEnv §5.3).
 """
 

@@ -7,13 +7,14 @@ The question it answers: does content balanced with a scripted tester stay balan
 play? Stages (``trainers.runfolder``; rerun with ``--resume`` to continue; the three trainers
 resume mid-training from their own checkpoints, the other stages rerun whole):
 
-1. ``tester``: MA-POCA trained over the generator's whole content box (``trainers.mapoca_cli
-   --content-box``: range, cool time, cast time and coefficient drawn per episode), in ``DIR/tester``.
+1. ``tester``: MA-POCA trained over the generator's whole content box (``trainers.runs.run_mapoca``
+   with ``content_box``: range, cool time, cast time and coefficient drawn per episode), in ``DIR/tester``.
 2. ``tester_check``: the tester's and PT-HR's win rates over a grid of the box (``grid`` values
    per parameter, ``grid_games`` games per skill), and Benchmark 1's AdjustedScore on ``heldout``
    skills drawn from the box with a fixed seed: the tester's win rate ÷ that of a specialist
-   trained on that one skill (all specialists in one vmapped program).
-3. ``generator_learned`` / ``generator_scripted``: PPO-PCGRL (``trainers.ppo_pcgrl_cli``) trained
+   trained on that one skill (all specialists in one vmapped program, checkpointed in
+   ``DIR/specialists``).
+3. ``generator_learned`` / ``generator_scripted``: PPO-PCGRL (``trainers.runs.run_ppo_pcgrl``) trained
    against the tester / against PT-HR, in ``DIR/generator_{learned,scripted}``.
 4. ``generate``: each generator, measuring with its own tester, runs ``episodes`` episodes per
    target 0.1..0.7 (``gen_games`` games per measurement, sampled actions, episodes end at the
@@ -30,7 +31,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import io
-import json
 from functools import partial
 
 import jax
@@ -40,13 +40,14 @@ import numpy as np
 import raidjax
 from raidjax import pcg
 from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli
-from trainers import checkpoint, mapoca_cli, ppo_pcgrl_cli
+from trainers import checkpoint, loop
 from trainers.config import PRESETS, Config
 from trainers.generate import evaluate, target_groups
 from trainers.mapoca import load_policy, make_trainer, range_table
 from trainers.ppo_pcgrl import PRESETS as PPO_PRESETS
 from trainers.ppo_pcgrl import PPOConfig
 from trainers.runfolder import RunFolder
+from trainers.runs import mapoca_learner, run_mapoca, run_ppo_pcgrl
 
 GENERATORS = ("learned", "scripted")  # trained against the MA-POCA tester / against PT-HR
 
@@ -160,29 +161,27 @@ def win_rates(key, skills: np.ndarray, n_games: int, team: Team, tester=raidjax.
 
 
 def stage_tester(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
-    path = rf.path("tester_config.json")
-    atomic_write(path, json.dumps(tester_config(scale, team).to_dict(), indent=1))
-    argv = ["--config", str(path), "--content-box", "--seed", str(seed), "--out", str(rf.out / "tester")]
-    resume = (rf.out / "tester" / "config.json").exists()
-    return mapoca_cli.main(argv + ["--resume"] * resume)
+    out = rf.out / "tester"
+    return run_mapoca(tester_config(scale, team), out, preset=scale.preset, seed=seed,
+                      resume=(out / "config.json").exists())
 
 
-def train_specialists(scale: Scale, team: Team, skills: np.ndarray, seed: int, log) -> dict:
-    """One MA-POCA specialist per generated content (``float32[k, K]``), trained together: actor
-    weights with a leading axis ``k``."""
+def train_specialists(rf: RunFolder, scale: Scale, team: Team, skills: np.ndarray, seed: int) -> dict:
+    """One MA-POCA specialist per generated content (``float32[k, K]``), trained together through
+    ``trainers.loop`` (checkpoints in ``DIR/specialists``, so the stage resumes mid-training):
+    actor weights with a leading axis ``k``."""
     cfg = tester_config(scale, team).replace(content_box=False)
     base, space = pcg.base_game(team.players), team.space
     trainer = make_trainer(cfg, base_params=base, redraw_ranges=False, fixed_content=True)
     contents = jax.vmap(lambda sk: space.apply(base, sk))(jnp.asarray(skills))
     tables = jnp.stack([range_table(cfg.skill_ranges)] * len(skills))  # unused: the content is fixed
     keys = jax.random.split(jax.random.PRNGKey(seed + 31), len(skills))
-    runner = jax.jit(jax.vmap(trainer.init))(keys, contents, tables)
-    chunk = jax.jit(jax.vmap(trainer.chunk))
-    for c in range(cfg.num_chunks):
-        runner, m = chunk(runner)
-        win = float(np.sum(m["wins"]) / max(np.sum(m["episodes"]), 1))
-        log(f"specialists chunk {c + 1}/{cfg.num_chunks}: training win rate {win:.3f}")
-    return runner.params["actor"]
+    learner = mapoca_learner(trainer, (keys, contents, tables), len(skills),
+                             describe=lambda r: f"training win rate {r['win_rate']:.3f}")
+    every = max(1, -(-cfg.checkpoint_every // cfg.updates_per_chunk))
+    done = loop.train(learner, rf.path("specialists", "checkpoints"), rf.out / "specialists",
+                      log=lambda s: rf.log(f"specialists: {s}"), checkpoint_every=every)
+    return done.state.params["actor"]
 
 
 def stage_tester_check(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
@@ -197,7 +196,7 @@ def stage_tester_check(rf: RunFolder, scale: Scale, team: Team, seed: int) -> di
     rf.write_csv("tester_grid", [{**dict(zip(space.names, map(float, sk), strict=True)),
                                   "learned": float(a), "scripted": float(b)}
                                  for sk, a, b in zip(grid, learned, scripted, strict=True)])
-    spec = train_specialists(scale, team, held, seed, rf.log)
+    spec = train_specialists(rf, scale, team, held, seed)
     game = pcg.base_game(team.players)
     spec_win = np.asarray(jax.jit(jax.vmap(lambda k, sk, w: jnp.mean(
         pcg.play_outcomes(k, game, sk, scale.grid_games, policy, w, space).astype(jnp.float32))))(
@@ -212,17 +211,15 @@ def stage_tester_check(rf: RunFolder, scale: Scale, team: Team, seed: int) -> di
             "adjusted_mean": float(np.mean(adjusted)) if adjusted else None, "adjusted_n": len(adjusted)}
 
 
-def generator_argv(rf: RunFolder, scale: Scale, team: Team, name: str, seed: int) -> list[str]:
-    """``trainers.ppo_pcgrl_cli`` arguments of generator ``name`` (the scale's PPO fields and the
-    team as a JSON ``--config`` file; both generators share it)."""
-    path = rf.path("generator_config.json")
+def train_generator(rf: RunFolder, scale: Scale, team: Team, name: str, seed: int) -> dict:
+    """Train generator ``name`` (``trainers.runs.run_ppo_pcgrl``, no evaluation) in
+    ``DIR/generator_<name>``: the scale's PPO fields and the team; ``learned`` playtests with the
+    MA-POCA tester."""
     config = PPO_PRESETS[scale.preset].replace(**scale.ppo, players=team.players, parameters=team.parameters)
-    atomic_write(path, json.dumps(config.to_dict(), indent=1))
-    argv = ["--preset", scale.preset, "--config", str(path), "--chunk", str(scale.chunk), "--seed", str(seed),
-            "--eval-episodes", "0", "--out", str(rf.out / f"generator_{name}")]
-    if name == "learned":
-        argv += ["--tester", str(rf.out / "tester")]
-    return argv + ["--resume"] * (rf.out / f"generator_{name}" / "config.json").exists()
+    out = rf.out / f"generator_{name}"
+    return run_ppo_pcgrl(config, out, preset=scale.preset, seed=seed, chunk=scale.chunk,
+                         evaluation={"eval_episodes": 0}, tester=rf.out / "tester" if name == "learned" else None,
+                         resume=(out / "config.json").exists())
 
 
 def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
@@ -287,7 +284,7 @@ def main(argv=None) -> dict:
     check = rf.stage("tester_check", lambda: stage_tester_check(rf, scale, team, args.seed))
     for name in GENERATORS:
         rf.stage(f"generator_{name}",
-                 lambda name=name: ppo_pcgrl_cli.main(generator_argv(rf, scale, team, name, args.seed)))
+                 lambda name=name: train_generator(rf, scale, team, name, args.seed))
     rf.stage("generate", lambda: stage_generate(rf, scale, team, args.seed))
     report = rf.stage("report", lambda: balance_report.report(rf))
     rf.log(f"done in {fmt_seconds(sum(rf.stage_seconds().values()))}")

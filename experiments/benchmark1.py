@@ -38,15 +38,14 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
-from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
+from raidjax.io import HelpFormatter, atomic_write, run_cli, whole_number_arg
 from raidjax.playtest import auto_games_per_arena
-from raidjax.sharding import put_batch
-from trainers import checkpoint
+from trainers import checkpoint, loop
 from trainers.config import PRESETS, Config
 from trainers.mapoca import RANGE_TABLE, make_trainer, range_table
-from trainers.metrics import MetricsLog
 from trainers.networks import sample_actions
 from trainers.runfolder import RunFolder
+from trainers.runs import mapoca_learner
 
 TABLE_RANGES = (5.0, 9.0, 13.0, 17.0)
 ROBUST_SETS = {"MA-POCA1": (5.0,), "MA-POCA2": (5.0, 9.0), "MA-POCA3": (5.0, 9.0, 13.0),
@@ -160,57 +159,38 @@ class Interrupted(Exception):
     """Training stopped early on purpose (``--max-chunks``); rerunning the command resumes."""
 
 
+def _training_wins(row: dict) -> str:
+    """Progress text: the mean training win rate of each group of runs (``win/<group>/...`` fields)."""
+    groups: dict[str, list[float]] = {}
+    for k, v in row.items():
+        if k.startswith("win/"):
+            groups.setdefault(k.split("/")[1], []).append(v)
+    return "training win " + "  ".join(f"{g} {np.mean(w):.2f}" for g, w in groups.items() if g != "mixed")
+
+
 def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chunks: int | None = None,
           protocol: str = "paper") -> dict:
-    """Train every run together (resuming from the last checkpoint); returns timing figures.
-
-    ``max_chunks`` stops after that many chunks of this invocation (simulates an interruption)."""
+    """Train every run together (resuming from the last checkpoint; ``trainers.loop``); returns
+    timing figures. ``max_chunks`` stops after that many chunks of this invocation (raises
+    ``Interrupted``, after a checkpoint)."""
     cfg = config_of(scale, protocol)
-    trainer = make_trainer(cfg, redraw_ranges=True)
-    inputs = _run_inputs(runs, base_seed)
-    init = jax.jit(jax.vmap(trainer.init))
-    ckpt = rf.path("checkpoints", "mapoca")
-    t0 = time.perf_counter()
-    if checkpoint.latest_step(ckpt) is not None:
-        runner, _, meta = checkpoint.restore(ckpt, jax.eval_shape(init, *inputs), quarantine=True)
-        start, seconds_before = meta["chunk"], meta["seconds"]
-        rf.log(f"train: resumed at chunk {start}/{cfg.num_chunks}")
-    else:
-        runner, start, seconds_before = init(*inputs), 0, 0.0
-    runner = put_batch(runner, len(runs))  # the runs split over every visible device (raidjax.sharding)
-    chunk = jax.jit(jax.vmap(trainer.chunk), donate_argnums=0).lower(runner).compile()
-    compile_s = time.perf_counter() - t0
-    per_chunk = cfg.updates_per_chunk * cfg.decisions_per_update
-    rf.log(f"train: {len(runs)} runs x {cfg.num_chunks} chunks x {per_chunk} decisions, compiled in {compile_s:.1f}s")
-    log = MetricsLog(rf.path("train", "metrics.jsonl").parent, resume_update=start * cfg.updates_per_chunk)
-    t_loop, done_here = time.perf_counter(), 0
-    for c in range(start, cfg.num_chunks):
-        if max_chunks is not None and c - start >= max_chunks:
-            raise Interrupted(f"stopped after chunk {c}/{cfg.num_chunks} (--max-chunks); "
-                              "rerun with --resume to continue")
-        runner, m = chunk(runner)
-        m = jax.device_get(m)
-        done_here += 1
-        el = time.perf_counter() - t_loop
-        rate = done_here * per_chunk * len(runs) / el
+
+    def row(m: dict) -> dict:
         win = m["wins"] / np.maximum(m["episodes"], 1)
-        row = {"chunk": c, "update": (c + 1) * cfg.updates_per_chunk, "env_steps": (c + 1) * per_chunk,
-               "seconds": seconds_before + el, "steps_per_s": rate}
-        row.update({f"win/{r['name']}/{r['seed']}": float(w) for r, w in zip(runs, win, strict=True)})
-        log.write(row)
-        groups = {g: float(np.mean([w for r, w in zip(runs, win, strict=True) if r["group"] == g]))
-                  for g in ("table", "robust", "population")}
-        rf.log(f"train [{c + 1}/{cfg.num_chunks}] {(c + 1) * per_chunk / 1e6:.2f}M decisions/run  {rate:,.0f} "
-               f"decisions/s  ETA {fmt_seconds((cfg.num_chunks - c - 1) * el / done_here)}  training win "
-               + "  ".join(f"{g} {w:.2f}" for g, w in groups.items()))
-        last_here = max_chunks is not None and c + 1 - start == max_chunks  # checkpoint before stopping
-        if (c + 1) % scale.checkpoint_chunks == 0 or c + 1 == cfg.num_chunks or last_here:
-            meta = {"chunk": c + 1, "update": (c + 1) * cfg.updates_per_chunk, "env_steps": (c + 1) * per_chunk,
-                    "seconds": seconds_before + el}
-            checkpoint.save(ckpt, runner, runner.params["actor"], cfg.to_dict(), meta)
-    train_s = seconds_before + time.perf_counter() - t_loop
-    return {"runs": len(runs), "decisions_per_run": cfg.num_chunks * per_chunk, "compile_seconds": compile_s,
-            "train_seconds": train_s, "decisions_per_s": cfg.num_chunks * per_chunk * len(runs) / max(train_s, 1e-9)}
+        return {f"win/{r['name']}/{r['seed']}": float(w) for r, w in zip(runs, win, strict=True)}
+
+    learner = mapoca_learner(make_trainer(cfg, redraw_ranges=True), _run_inputs(runs, base_seed), len(runs),
+                             row=row, describe=_training_wins)
+    rf.log(f"train: {len(runs)} runs x {cfg.num_chunks} chunks x {cfg.updates_per_chunk * cfg.decisions_per_update} "
+           "decisions")
+    done = loop.train(learner, rf.path("checkpoints", "mapoca"), rf.out / "train", log=lambda s: rf.log(f"train: {s}"),
+                      checkpoint_every=scale.checkpoint_chunks, max_chunks=max_chunks)
+    if not done.finished:
+        raise Interrupted(f"stopped at update {done.update}/{cfg.num_updates} (--max-chunks); "
+                          "rerun with --resume to continue")
+    decisions = cfg.num_updates * cfg.decisions_per_update
+    return {"runs": len(runs), "decisions_per_run": decisions, "compile_seconds": done.compile_seconds,
+            "train_seconds": done.seconds, "decisions_per_s": decisions * len(runs) / max(done.seconds, 1e-9)}
 
 
 def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str):

@@ -7,7 +7,7 @@ Stages (each a ``RunFolder.stage``; rerunning the same command with ``--resume``
 last finished one, and ``train`` also resumes mid-training from its latest orbax checkpoint):
 
 1. ``train``: PPO-PCGRL (``trainers.ppo_pcgrl``) in jitted chunks, orbax checkpoints in
-   ``DIR/checkpoints/ppo``, per-update metrics in ``csv/ppo_train.csv``, progress in ``log.txt``.
+   ``DIR/checkpoints/ppo``, per-update metrics in ``train/metrics.csv``, progress in ``log.txt``.
 2. ``generate``: the trained PPO, PCG-HR and PCG-RD generators run ``episodes`` episodes per target
    (0.1..0.7) under the protocol (``raidjax.pcg.metrics.PROTOCOLS``). ``paper`` (default): strict
    40-decision episodes, every decision measured with ``eval_games`` (300) PT-HR games, greedy PPO,
@@ -31,7 +31,6 @@ The last stdout line is the JSON summary (also ``summary.json``).
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
 import io
 import time
@@ -43,12 +42,11 @@ import numpy as np
 from raidjax import pcg
 from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from raidjax.pcg import metrics as pm
-from raidjax.sharding import put_batch
-from trainers import checkpoint
+from trainers import checkpoint, loop
 from trainers.generate import evaluate, target_groups
-from trainers.metrics import update_rows
-from trainers.ppo_pcgrl import PPOConfig, get_config, make_train
+from trainers.ppo_pcgrl import PPOConfig, get_config
 from trainers.runfolder import RunFolder
+from trainers.runs import ppo_learner
 
 METHODS = ("PPO", "PCG-HR", "PCG-RD")
 FIELDS = ("target", "skill", "win_rate", "gen_win_rate", "edits", "reached")
@@ -154,94 +152,36 @@ def _parse(argv=None) -> argparse.Namespace:
 
 
 class _Learner:
-    """The PPO learner of a run: groups, jitted init, its checkpoints folder."""
+    """The PPO learner of a run: its config, groups, ``trainers.loop.Learner`` and checkpoints folder."""
 
     def __init__(self, run: RunFolder, scale: Scale, seed: int):
         self.config = ppo_config(scale)
-        self.train = make_train(self.config)
         pairs, self.labels = target_groups(self.config, scale.seeds)
         self.G = len(self.labels)
-        self.keys = jax.random.split(jax.random.key(seed), self.G)
-        self.tg = jnp.asarray(pairs)
-        self.init = jax.jit(jax.vmap(self.train.init), compiler_options=scale.compiler_options)
         self.steps_per_update = self.config.n_arenas * self.config.n_steps
+        keys = jax.random.split(jax.random.key(seed), self.G)
+        self.learner = ppo_learner(self.config, keys, jnp.asarray(pairs), scale.chunk, scale.compiler_options)
         self.ckpt = run.out / "checkpoints" / "ppo"
 
     def restore(self):
         """``(runner, update)`` of the latest checkpoint, or ``(None, 0)`` without checkpoints."""
         if checkpoint.latest_step(self.ckpt) is None:
             return None, 0
-        runner, _, meta = checkpoint.restore(self.ckpt, jax.eval_shape(self.init, self.keys, self.tg),
-                                             quarantine=True)
+        runner, _, meta = checkpoint.restore(self.ckpt, self.learner.abstract_state(), quarantine=True)
         return runner, int(meta["update"])
 
 
-def _read_train_csv(path, upto: int) -> list[dict]:
-    """Rows of ``csv/ppo_train.csv`` with ``update <= upto`` (numbers as floats/ints)."""
-    if not path.exists():
-        return []
-    rows = []
-    for r in csv.DictReader(io.StringIO(path.read_text())):
-        r = {k: (int(v) if k in ("update", "env_steps") else float(v)) for k, v in r.items()}
-        if r["update"] <= upto:
-            rows.append(r)
-    return rows
-
-
 def stage_train(run: RunFolder, scale: Scale, seed: int) -> dict:
-    """Train PPO with checkpoints; resume from the latest one. Returns ``train_seconds`` (cumulative
-    over resumes), ``steps`` (generator steps per group), ``groups``, ``updates``, ``seconds``."""
-    t_start = time.perf_counter()  # wall clock of this invocation (compiles included)
+    """Train PPO with checkpoints (``trainers.loop``); resume from the latest one. Returns
+    ``train_seconds`` (cumulative over resumes, compiles excluded), ``steps`` (generator steps per
+    group), ``groups``, ``updates``, ``seconds``."""
     lr = _Learner(run, scale, seed)
     total = lr.config.num_updates
     run.log(f"train: preset {scale.preset}, {lr.G} group(s), {total} updates x {lr.steps_per_update} steps, "
             f"N = {lr.config.n_games} games per measurement")
-    runner, start = lr.restore()
-    if runner is None:
-        runner = lr.init(lr.keys, lr.tg)
-        run.log(f"train: initialised (compile included) in {fmt_seconds(time.perf_counter() - t_start)}")
-    else:
-        run.log(f"train: resumed from checkpoint at update {start}/{total}")
-    runner = put_batch(runner, lr.G)  # the groups split over every visible device (raidjax.sharding)
-    rows = _read_train_csv(run.out / "csv" / "ppo_train.csv", start)
-    wall0 = rows[-1]["wall_s"] if rows else 0.0
-
-    def chunk_fn(runner, tg, n):
-        def one(r, t):
-            return jax.lax.scan(lambda rr, _: lr.train.update(rr, t), r, None, n)
-        return jax.vmap(one)(runner, tg)
-
-    compiled = {}
-    t_rate = time.perf_counter()  # steps-per-second clock (compiles excluded)
-    steps_done, u = 0, start
-    while u < total:
-        n = min(scale.chunk, total - u)
-        if n not in compiled:
-            t = time.perf_counter()
-            compiled[n] = jax.jit(chunk_fn, static_argnums=2).lower(runner, lr.tg, n).compile(
-                scale.compiler_options)
-            run.log(f"train: compiled a {n}-update chunk in {fmt_seconds(time.perf_counter() - t)}")
-            t_rate += time.perf_counter() - t
-        t0 = time.perf_counter()
-        runner, metrics = compiled[n](runner, lr.tg)
-        jax.block_until_ready(runner)
-        dt = time.perf_counter() - t0
-        u += n
-        steps_done += n * lr.steps_per_update * lr.G
-        wall = wall0 + time.perf_counter() - t_start
-        new = update_rows(u - n, jax.device_get(metrics), lr.steps_per_update)
-        rows += [{**{k: v for k, v in r.items() if k != "final_error_per_group"}, "wall_s": wall} for r in new]
-        run.write_csv("ppo_train", rows)  # before the checkpoint: a resume drops rows past it, never leaves gaps
-        checkpoint.save(lr.ckpt, runner, runner["params"], lr.config.to_dict(), {"update": u}, max_to_keep=2)
-        rate = steps_done / max(time.perf_counter() - t_rate, 1e-9)
-        eta = (total - u) * lr.steps_per_update * lr.G / max(rate, 1e-9)
-        last = rows[-1]
-        run.log(f"train: update {u}/{total} steps {u * lr.steps_per_update} steps/s {rate:.1f} chunk {dt:.1f}s "
-                f"ETA {fmt_seconds(eta)} reward {last['reward']:.2f} final_err {last['final_error']:.3f} "
-                f"edits {last['edits']:.1f} entropy {last['entropy']:.2f}")
-    train_s = rows[-1]["wall_s"] if rows else 0.0
-    return {"train_seconds": train_s, "steps": total * lr.steps_per_update, "groups": lr.G, "updates": total,
-            "n_games": lr.config.n_games, "seconds": train_s}
+    done = loop.train(lr.learner, lr.ckpt, run.out / "train", log=lambda s: run.log(f"train: {s}"), max_to_keep=2)
+    return {"train_seconds": done.seconds, "steps": total * lr.steps_per_update, "groups": lr.G, "updates": total,
+            "n_games": lr.config.n_games, "seconds": done.seconds}
 
 
 def save_generated(path, gens: dict) -> None:

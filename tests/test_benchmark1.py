@@ -33,7 +33,7 @@ def test_interrupted_run_resumes_mid_training(run):
     assert first == {"interrupted": True}
     assert not after["train_done"] and after["checkpoints"] == ["1"]  # chunk 1 of 2 checkpointed
     log = (out / "log.txt").read_text()
-    assert "resumed at chunk 1/2" in log
+    assert "resumed from the checkpoint at update 1/2" in log
     chunks = [json.loads(s)["chunk"] for s in (out / "train" / "metrics.jsonl").read_text().splitlines()]
     assert chunks == [0, 1]  # one row per chunk, none lost or repeated across the interruption
     assert summary["train"]["decisions_per_run"] == 256

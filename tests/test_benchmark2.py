@@ -40,7 +40,7 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
 
     for f in ["config.json", "log.txt", "summary.json", "generated.npz", "tables/controllability.md",
               "tables/diversity.md", "tables/yield.md", "csv/controllability.csv", "csv/diversity.csv",
-              "csv/yield.csv", "csv/generated.csv", "csv/ppo_train.csv", "stages/train.json",
+              "csv/yield.csv", "csv/generated.csv", "train/metrics.csv", "stages/train.json",
               "stages/generate.json", "stages/report.json"]:
         assert (out / f).is_file(), f
     assert json.loads((out / "config.json").read_text())["scale"] == "smoke"
@@ -56,7 +56,7 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
 
     # Training metrics: one row per update.
     cfg = b2.ppo_config(b2.SCALES["smoke"])
-    train_rows = _csv(out / "csv" / "ppo_train.csv")
+    train_rows = _csv(out / "train" / "metrics.csv")
     assert [int(r["update"]) for r in train_rows] == list(range(1, cfg.num_updates + 1))
 
     # Raw generations: E episodes per target and method, one CSV row each.
@@ -123,8 +123,8 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
         (out / name).unlink()
     b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3", "--resume"])
     log = (out / "log.txt").read_text()
-    assert f"resumed from checkpoint at update {cfg.num_updates - 1}/{cfg.num_updates}" in log
-    assert [int(r["update"]) for r in _csv(out / "csv" / "ppo_train.csv")] == list(range(1, cfg.num_updates + 1))
+    assert f"resumed from the checkpoint at update {cfg.num_updates - 1}/{cfg.num_updates}" in log
+    assert [int(r["update"]) for r in _csv(out / "train" / "metrics.csv")] == list(range(1, cfg.num_updates + 1))
     again, _ = learner.restore()
     for x, y in zip(jax.tree.leaves(final), jax.tree.leaves(again), strict=True):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))

@@ -43,11 +43,14 @@ class MetricsLog:
             update of the checkpoint resumed from); ``None`` starts both files empty.
         tensorboard: also write the scalar fields to ``DIR/tensorboard`` when ``tensorboardX`` is
             installed.
+        name: the files' name, ``DIR/<name>.jsonl`` and ``DIR/<name>.csv``.
     """
 
-    def __init__(self, out: str | Path, resume_update: int | None = None, tensorboard: bool = True):
+    def __init__(self, out: str | Path, resume_update: int | None = None, tensorboard: bool = True,
+                 name: str = "metrics"):
         out = Path(out)
-        self.jsonl, self.csv = out / "metrics.jsonl", out / "metrics.csv"
+        out.mkdir(parents=True, exist_ok=True)
+        self.jsonl, self.csv = out / f"{name}.jsonl", out / f"{name}.csv"
         rows = []
         if resume_update is not None and self.jsonl.exists():
             for i, line in enumerate(self.jsonl.read_text().splitlines(), 1):

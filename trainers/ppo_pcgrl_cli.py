@@ -14,26 +14,13 @@ intact checkpoint with the same settings; anything else on an existing run is re
 from __future__ import annotations
 
 import argparse
-import json
-import math
-import os
-import time
-from pathlib import Path
-
-import jax
-import jax.numpy as jnp
-import numpy as np
 
 from raidjax import pcg
-from raidjax.io import HelpFormatter, atomic_write, finite_json, fmt_seconds, run_cli, whole_number_arg
-from raidjax.sharding import put_batch
+from raidjax.io import HelpFormatter, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import read_fields
-from trainers.generate import evaluate, target_groups
-from trainers.mapoca import load_policy
-from trainers.metrics import MetricsLog, update_rows
-from trainers.ppo_pcgrl import PRESETS, PPOConfig, get_config, make_train
-from trainers.runfolder import RunFolder
+from trainers.ppo_pcgrl import PRESETS, PPOConfig, get_config
+from trainers.runs import run_ppo_pcgrl
 
 
 def _args(argv=None):
@@ -94,22 +81,10 @@ def load_fields(path: str | None) -> dict:
     return {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
 
 
-def _rounded(x, key: str = ""):
-    """The result's floats for its printed line: seconds to 0.01 s, the rest to 6 decimals (0.132, not
-    0.13200000524520874)."""
-    if isinstance(x, dict):
-        return {k: _rounded(v, k) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_rounded(v, key) for v in x]
-    if isinstance(x, float) and math.isfinite(x):
-        return round(x, 2 if key.endswith("seconds") else 6)
-    return x
-
-
 def main(argv=None) -> dict | None:
-    """Train, checkpoint, evaluate; the last stdout line is one JSON object (also returned)."""
+    """Train, checkpoint, evaluate (``trainers.runs.run_ppo_pcgrl``); the last stdout line is one
+    JSON object (also returned)."""
     args = _args(argv)
-    t_start = time.perf_counter()
     flags = dict(total_steps=args.total_steps, n_games=args.n_games, n_arenas=args.n_arenas, lr=args.lr,
                  edit_cost=args.edit_cost, pool_repeats=args.pool_repeats, ent_coef=args.ent_coef,
                  goal_cost=args.goal_cost, goal_axis=args.goal_axis,
@@ -118,95 +93,8 @@ def main(argv=None) -> dict | None:
     config = get_config(args.preset, **{**load_fields(args.config), **flags})  # preset, then file, then flags
     evaluation = {k: getattr(args, k) for k in ("eval_episodes", "eval_gen_games", "eval_games", "greedy",
                                                 "no_baselines")}
-    settings = {"trainer": "ppo_pcgrl", "preset": args.preset, "seeds": args.seeds, "seed": args.seed,
-                "chunk": args.chunk, "config": config.to_dict(), "evaluation": evaluation}
-    tester = {}
-    if args.tester is not None:  # loaded (and checked) before the run folder is touched
-        policy, weights = load_policy(args.tester, seed=0, deterministic=False)
-        tester = {"tester": policy, "tester_weights": weights}
-        # the weights' digest decides whether --resume continues the same run; the folder may move
-        settings.update(tester=checkpoint.digest(weights), tester_run=str(Path(args.tester).resolve()))
-    rf = RunFolder(args.out, settings, resume=args.resume, ignore=("evaluation", "tester_run"))
-    if rf.finished:
-        return rf.already_finished()
-    out = rf.out
-    train = make_train(config, **tester)
-    pairs, labels = target_groups(config, args.seeds)
-    G, chunk = len(labels), max(1, args.chunk)
-    keys = jax.random.split(jax.random.key(args.seed), G)
-    tg = jnp.asarray(pairs)
-    init_v = jax.jit(jax.vmap(train.init))
-    runner = init_v(keys, tg)
-
-    @jax.jit
-    def run_chunk(runner, tg):
-        def one(r, t):
-            return jax.lax.scan(lambda rr, _: train.update(rr, t), r, None, chunk)
-        return jax.vmap(one)(runner, tg)
-
-    ckpt = out / "checkpoints"
-    start = 0
-    if checkpoint.latest_step(ckpt) is not None:  # else a new run, or one stopped before its first checkpoint
-        runner, _, meta = checkpoint.restore(ckpt, jax.eval_shape(init_v, keys, tg), quarantine=True)
-        start = int(meta["update"])
-        print(f"resumed from the checkpoint at update {start}", flush=True)
-    runner = put_batch(runner, G)  # the groups split over every visible device (raidjax.sharding)
-    log = MetricsLog(out, resume_update=start)
-    steps_per_update = config.n_arenas * config.n_steps
-    total_updates = config.num_updates
-    print(f"preset={args.preset} groups={G} updates={total_updates} steps/update={steps_per_update} "
-          f"n_games={config.n_games}", flush=True)
-    t_train = time.perf_counter()
-    u, done_steps, chunks_here = start, 0, 0
-    while u < total_updates and (args.max_chunks is None or chunks_here < args.max_chunks):
-        chunks_here += 1
-        t0 = time.perf_counter()
-        runner, metrics = run_chunk(runner, tg)
-        jax.block_until_ready(runner)
-        dt = time.perf_counter() - t0
-        m = jax.device_get(metrics)
-        for row in update_rows(u, m, steps_per_update):
-            log.write(row)
-        u += chunk
-        done_steps += chunk * steps_per_update
-        checkpoint.save(ckpt, runner, runner["params"], config.to_dict(), {"update": u}, max_to_keep=2)
-        rate = done_steps * G / max(time.perf_counter() - t_train, 1e-9)
-        eta = (total_updates - u) * steps_per_update * G / max(rate, 1e-9)
-        last = lambda k: np.nanmean(m[k][:, -1]) if np.isfinite(m[k][:, -1]).any() else float("nan")  # noqa: B023
-        print(f"update {min(u, total_updates)}/{total_updates} steps {min(u, total_updates) * steps_per_update} "
-              f"steps/s {rate:.1f} chunk {dt:.1f}s ETA {fmt_seconds(max(eta, 0))} "
-              f"reward {np.mean(m['reward'][:, -1]):.2f} "
-              f"final_err {last('final_error'):.3f} edits {last('edits'):.1f} "
-              f"entropy {np.mean(m['entropy'][:, -1]):.2f}", flush=True)
-    train_s = time.perf_counter() - t_train
-    if u < total_updates:
-        print(f"stopped at update {u}/{total_updates} (--max-chunks); rerun with --resume to continue", flush=True)
-        return {"stopped_at_update": u}
-    t_eval = time.perf_counter()
-    res = {"train_seconds": train_s, "preset": args.preset, "seeds": args.seeds,
-           "total_steps": total_updates * steps_per_update, "groups": G, "n_games": config.n_games,
-           "cpu_count": os.cpu_count()}
-    if args.eval_episodes > 0:
-        gens = evaluate(jax.random.key(args.seed + 1), config, runner["params"], labels,
-                        gen_games=args.eval_gen_games, greedy=args.greedy, episodes=args.eval_episodes,
-                        eval_games=args.eval_games, baselines=not args.no_baselines, **tester)
-        summ = pcg.metrics.summarize(gens)
-        atomic_write(out / "eval.json", finite_json(summ, indent=1))
-        for name, s in summ.items():
-            c = s["controllability"]
-            print(f"{name}: mean error {c['err_mean']:.3f} ± {c['err_sd']:.3f} (n={c['n']}) yield {s['yield']:.2f} "
-                  f"edits {s['edits_mean']:.1f} PC1 SD {s['pc1_sd_mean']:.3f}", flush=True)
-        res.update({"mean_error": summ["PPO"]["controllability"]["err_mean"],
-                    "heuristic_mean_error": summ.get("PCG-HR", {}).get("controllability", {}).get("err_mean"),
-                    "random_mean_error": summ.get("PCG-RD", {}).get("controllability", {}).get("err_mean"),
-                    "pc1_sd": {n: s["pc1_sd_mean"] for n, s in summ.items()},
-                    "yield": {n: s["yield"] for n, s in summ.items()},
-                    "eval_seconds": time.perf_counter() - t_eval})
-    res["seconds"] = time.perf_counter() - t_start
-    res = json.loads(finite_json(_rounded(res)))  # NaN as null: valid JSON
-    atomic_write(out / "result.json", json.dumps(res, indent=1))
-    print(json.dumps(res), flush=True)
-    return res
+    return run_ppo_pcgrl(config, args.out, preset=args.preset, seeds=args.seeds, seed=args.seed, chunk=args.chunk,
+                         resume=args.resume, max_chunks=args.max_chunks, evaluation=evaluation, tester=args.tester)
 
 
 def cli(argv=None) -> None:

@@ -46,7 +46,7 @@ from trainers.generate import evaluate, target_groups
 from trainers.mapoca import load_policy, make_trainer, range_table
 from trainers.ppo_pcgrl import PRESETS as PPO_PRESETS
 from trainers.ppo_pcgrl import PPOConfig
-from trainers.runfolder import RunFolder
+from trainers.runfolder import RunFolder, add_run_arguments
 from trainers.runs import mapoca_learner, run_mapoca, run_ppo_pcgrl
 
 GENERATORS = ("learned", "scripted")  # trained against the MA-POCA tester / against PT-HR
@@ -258,17 +258,13 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(prog="python -m experiments.balance", formatter_class=HelpFormatter,
                                  description="The integrated balancing loop: a learned playtester inside the "
                                  "skill generator, against the scripted PT-HR (GAME.md §13).")
-    ap.add_argument("--scale", choices=sorted(SCALES), default="smoke",
-                    help="budgets (smoke: a few minutes, for the plumbing; cpu: about 40 min on 2 cores; "
-                    "paper: the paper's budgets, for an accelerator)")
-    ap.add_argument("--out", required=True, help="run folder, new or holding this run with --resume (required)")
-    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
+    add_run_arguments(ap, SCALES, "budgets (smoke: a few minutes, for the plumbing; cpu: about 40 min on 2 cores; "
+                      "paper: the paper's budgets, for an accelerator)")
     ap.add_argument("--players", nargs="+", default=["mage"] * 3,
                     help="the team's class presets, e.g. warrior mage priest (default: three mages)")
     ap.add_argument("--parameters", nargs="+", default=[],
                     help="the generator's parameters (raidjax.pcg.space names, e.g. mage.skill1.range=1:20 "
                     "boss.max_hp=500:3000; default: the paper's four, which need three mages)")
-    ap.add_argument("--resume", action="store_true", help="continue the run in --out (same settings)")
     args = ap.parse_args(argv)
     scale = SCALES[args.scale]
     team = Team(tuple(args.players), tuple(args.parameters))

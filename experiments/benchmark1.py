@@ -44,7 +44,7 @@ from trainers import checkpoint, loop
 from trainers.config import PRESETS, Config
 from trainers.mapoca import RANGE_TABLE, make_trainer, range_table
 from trainers.networks import sample_actions
-from trainers.runfolder import RunFolder
+from trainers.runfolder import RunFolder, add_run_arguments
 from trainers.runs import mapoca_learner
 
 TABLE_RANGES = (5.0, 9.0, 13.0, 17.0)
@@ -299,11 +299,7 @@ def main(argv=None) -> dict:
     """Run (or resume) Benchmark 1; returns the summary (also the last stdout line)."""
     ap = argparse.ArgumentParser(prog="python -m experiments.benchmark1", description=__doc__.split("\n")[0],
                                  formatter_class=HelpFormatter)
-    ap.add_argument("--scale", choices=sorted(SCALES), default="smoke", help="budgets: smoke (a test), cpu, paper")
-    ap.add_argument("--out", required=True, help="run folder, new or holding this run with --resume (required)")
-    ap.add_argument("--resume", action="store_true", help="continue the run in --out (same settings; a finished run "
-                    "is left as it is)")
-    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
+    add_run_arguments(ap, SCALES, "budgets: smoke (a test), cpu, paper")
     ap.add_argument("--protocol", choices=sorted(PROTOCOLS), default="paper",
                     help="paper: the reference player's observation and 8 actions; MA-POCA1..4 and populations "
                     "train at cool time 0.5, range redrawn every second episode; raidjax: raidjax's observation "

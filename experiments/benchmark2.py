@@ -45,7 +45,7 @@ from raidjax.pcg import metrics as pm
 from trainers import checkpoint, loop
 from trainers.generate import evaluate, target_groups
 from trainers.ppo_pcgrl import PPOConfig, get_config
-from trainers.runfolder import RunFolder
+from trainers.runfolder import RunFolder, add_run_arguments
 from trainers.runs import ppo_learner
 
 METHODS = ("PPO", "PCG-HR", "PCG-RD")
@@ -123,11 +123,7 @@ def _parse(argv=None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="python -m experiments.benchmark2",
                                  description="Benchmark 2 (content generation) of the RaidEnv paper",
                                  formatter_class=HelpFormatter)
-    ap.add_argument("--scale", choices=sorted(SCALES), default="smoke", help="budgets: smoke (minutes), cpu, paper")
-    ap.add_argument("--out", required=True, help="run folder, new or holding this run with --resume (required)")
-    ap.add_argument("--resume", action="store_true", help="continue the run in --out (same settings; a finished run "
-                    "is left as it is)")
-    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
+    add_run_arguments(ap, SCALES, "budgets: smoke (minutes), cpu (under 3 hours on 2 cores), paper")
     ap.add_argument("--protocol", choices=sorted(pm.PROTOCOLS), default="paper",
                     help="paper: strict 40-decision episodes measured with eval_games games at every edit, greedy "
                     "PPO, last measured skill, groups cut to 300; raidjax: early stop at the band, sampled PPO, "

@@ -19,6 +19,7 @@ import argparse
 from raidjax.io import HelpFormatter, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import load_config
+from trainers.runfolder import add_run_arguments
 from trainers.runs import run_mapoca
 
 
@@ -41,10 +42,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument("--total-steps", type=whole_number_arg(1),
                     help="environment decisions per seed (default: the preset's)")
     ap.add_argument("--seeds", type=whole_number_arg(1), default=1, help="seeds trained together (vmapped)")
-    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
-    ap.add_argument("--out", required=True, help="run folder, new or holding this run with --resume (required)")
-    ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
-                    "checkpoint (same settings; a finished run is left as it is)")
+    add_run_arguments(ap)
     ap.add_argument("--checkpoint-every", type=whole_number_arg(1),
                     help="updates between checkpoints (default: the preset's)")
     ap.add_argument("--updates-per-chunk", type=whole_number_arg(1),

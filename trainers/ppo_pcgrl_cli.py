@@ -20,6 +20,7 @@ from raidjax.io import HelpFormatter, run_cli, whole_number_arg
 from trainers import checkpoint
 from trainers.config import read_fields
 from trainers.ppo_pcgrl import PRESETS, PPOConfig, get_config
+from trainers.runfolder import add_run_arguments
 from trainers.runs import run_ppo_pcgrl
 
 
@@ -35,10 +36,7 @@ def _args(argv=None):
                     "mage.skill1.range=1:20 boss.max_hp=500:3000; default: the paper's four)")
     ap.add_argument("--total-steps", type=whole_number_arg(1), help="generator steps per group (default: the preset's)")
     ap.add_argument("--seeds", type=whole_number_arg(1), default=1, help="seeds per target group (vmapped)")
-    ap.add_argument("--out", default="runs/ppo_pcgrl", help="run folder (new, or holding this run with --resume)")
-    ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
-                    "checkpoint (same settings; a finished run is left as it is)")
-    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
+    add_run_arguments(ap, out_default="runs/ppo_pcgrl")
     ap.add_argument("--tester", help="playtest with a trained MA-POCA team: its run folder (trainers.mapoca_cli "
                     "--out; seed 0, sampled actions) instead of PT-HR, in training and evaluation (default: PT-HR)")
     ap.add_argument("--n-games", type=whole_number_arg(1),

@@ -64,6 +64,20 @@ def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:
     return out
 
 
+def add_run_arguments(ap, scales=None, scale_help: str = "budgets", out_default: str | None = None) -> None:
+    """The flags every long job shares: ``--scale`` (when ``scales`` is given; default ``smoke``),
+    ``--out`` (required unless ``out_default``), ``--resume`` and ``--seed``, to an
+    ``argparse.ArgumentParser`` ``ap``."""
+    if scales is not None:
+        ap.add_argument("--scale", choices=sorted(scales), default="smoke", help=scale_help)
+    ap.add_argument("--out", required=out_default is None, default=out_default,
+                    help="run folder, new or holding this run with --resume"
+                    + (" (required)" if out_default is None else ""))
+    ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
+                    "checkpoint (same settings; a finished run is left as it is)")
+    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
+
+
 def check_out(out: str | Path, flag: str = "--out") -> Path:
     """``out`` as a folder path, refusing an existing file (``RunFolderError`` naming ``flag``)."""
     out = Path(out)

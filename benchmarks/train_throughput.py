@@ -33,7 +33,9 @@ import jax
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script from anywhere
 from raidjax.io import machine
 from raidjax.xla_flags import use_recommended_xla_flags
-from trainers.config import PRESETS  # noqa: E402
+from trainers.config import PRESETS as ALL_PRESETS  # noqa: E402
+
+PRESETS = ALL_PRESETS["mapoca"]
 from trainers.mapoca import make_trainer  # noqa: E402
 
 

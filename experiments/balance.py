@@ -41,11 +41,9 @@ import raidjax
 from raidjax import pcg
 from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli
 from trainers import checkpoint, loop
-from trainers.config import PRESETS, Config
+from trainers.config import PRESETS, Config, PPOConfig
 from trainers.generate import evaluate, target_groups
 from trainers.mapoca import load_policy, make_trainer, range_table
-from trainers.ppo_pcgrl import PRESETS as PPO_PRESETS
-from trainers.ppo_pcgrl import PPOConfig
 from trainers.runfolder import RunFolder, add_run_arguments
 from trainers.runs import mapoca_learner, run_mapoca, run_ppo_pcgrl
 
@@ -67,8 +65,8 @@ class Scale:
         gen_games: games per generator measurement during generation.
         max_edits: edits per generation episode at most.
         eval_games: games of each tester on every final skill.
-        preset: the trainers' preset (``cpu`` or ``paper``, in ``trainers.config.PRESETS`` and
-            ``trainers.ppo_pcgrl.PRESETS``).
+        preset: the trainers' preset (``cpu`` or ``paper``, in ``trainers.config.PRESETS`` of both
+            learners).
     """
 
     tester: dict
@@ -89,7 +87,7 @@ SCALES = {
     "smoke": Scale(tester=dict(n_arenas=8, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1, heads=1,
                                updates_per_chunk=1, checkpoint_every=1, total_steps=128),
                    heldout=1, grid=2, grid_games=4,
-                   ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2, hidden=(8,),
+                   ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2, hidden=8, layers=1,
                             n_games=4, max_edits=4),
                    chunk=1, episodes=1, gen_games=4, max_edits=3, eval_games=4),
     # About half an hour on 2 CPU cores (docs/RESULTS.md): a 2 M-decision tester and 3 specialists
@@ -120,7 +118,7 @@ class Team:
 
 def tester_config(scale: Scale, team: Team) -> Config:
     """The tester's MA-POCA config (the scale's preset and overrides, ``content_box``)."""
-    return PRESETS[scale.preset].replace(**scale.tester, content_box=True, eval_games=0, players=team.players,
+    return PRESETS["mapoca"][scale.preset].replace(**scale.tester, content_box=True, eval_games=0, players=team.players,
                                   parameters=team.parameters)
 
 
@@ -215,7 +213,7 @@ def train_generator(rf: RunFolder, scale: Scale, team: Team, name: str, seed: in
     """Train generator ``name`` (``trainers.runs.run_ppo_pcgrl``, no evaluation) in
     ``DIR/generator_<name>``: the scale's PPO fields and the team; ``learned`` playtests with the
     MA-POCA tester."""
-    config = PPO_PRESETS[scale.preset].replace(**scale.ppo, players=team.players, parameters=team.parameters)
+    config = PRESETS["ppo_pcgrl"][scale.preset].replace(**scale.ppo, players=team.players, parameters=team.parameters)
     out = rf.out / f"generator_{name}"
     return run_ppo_pcgrl(config, out, preset=scale.preset, seed=seed, chunk=scale.chunk,
                          evaluation={"eval_episodes": 0}, tester=rf.out / "tester" if name == "learned" else None,

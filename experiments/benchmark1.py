@@ -99,7 +99,7 @@ SCALES = {
                  heatmap_ranges=(5.0, 9.0, 13.0, 17.0), checkpoint_chunks=5),
     # the paper's budgets: 50 M agent steps (the paper preset's 16.7 M decisions) per run, 5 seeds,
     # populations of 5
-    "paper": Scale("paper", total_steps=PRESETS["paper"].total_steps, seeds=5, population=5, games=500,
+    "paper": Scale("paper", total_steps=PRESETS["mapoca"]["paper"].total_steps, seeds=5, population=5, games=500,
                    heatmap_games=500,
                    heatmap_ranges=(5.0, 9.0, 13.0, 17.0), checkpoint_chunks=5),
 }
@@ -108,8 +108,9 @@ SCALES = {
 def config_of(scale: Scale, protocol: str = "paper") -> Config:
     """The trainer ``Config`` of a scale under a protocol (``PROTOCOLS`` key)."""
     pr = PROTOCOLS[protocol]
-    return PRESETS[scale.preset].replace(total_steps=scale.total_steps, eval_games=0, redraw_every=pr.redraw_every,
-                                         senses=pr.senses, **dict(scale.trainer))
+    return PRESETS["mapoca"][scale.preset].replace(total_steps=scale.total_steps, eval_games=0,
+                                                   redraw_every=pr.redraw_every, senses=pr.senses,
+                                                   **dict(scale.trainer))
 
 
 def content_of(kind: str, skill_range: float = 5.0) -> raidjax.Params:

@@ -43,8 +43,8 @@ from raidjax import pcg
 from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
 from raidjax.pcg import metrics as pm
 from trainers import checkpoint, loop
+from trainers.config import PPOConfig, load_config
 from trainers.generate import evaluate, target_groups
-from trainers.ppo_pcgrl import PPOConfig, get_config
 from trainers.runfolder import RunFolder, add_run_arguments
 from trainers.runs import ppo_learner
 
@@ -57,7 +57,7 @@ class Scale:
     """Budgets of one scale.
 
     Attributes:
-        preset: ``trainers.ppo_pcgrl.PRESETS`` key; ``ppo`` holds overrides of its fields.
+        preset: ``trainers.config.PRESETS["ppo_pcgrl"]`` key; ``ppo`` holds overrides of its fields.
         seeds: PPO training seeds (per fixed target when the preset does not observe the target).
         chunk: PPO updates per jitted chunk (progress / checkpoint period).
         episodes: generation episodes per target and method (PPO: split evenly over seeds).
@@ -94,7 +94,7 @@ SCALES = {
     # Seconds: a tiny learner, a few games per measurement, 4-decision paper-protocol episodes (used
     # by the tests; its numbers mean nothing).
     "smoke": Scale(preset="cpu", ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2,
-                                          hidden=(16, 16), n_games=8, max_edits=6),
+                                          hidden=16, layers=2, n_games=8, max_edits=6),
                    seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=16, decisions=4,
                    fast_compile=True),
     # Sized to finish within 3 hours on a 2-core CPU (the paper protocol: 40-decision episodes,
@@ -116,7 +116,7 @@ SCALES = {
 
 def ppo_config(scale: Scale) -> PPOConfig:
     """The ``PPOConfig`` of a scale (its preset with the scale's overrides)."""
-    return get_config(scale.preset, **scale.ppo)
+    return load_config(scale.preset, learner="ppo_pcgrl", **scale.ppo)
 
 
 def _parse(argv=None) -> argparse.Namespace:

@@ -187,6 +187,8 @@ def test_generator_cli_refuses_a_bad_config_file_and_a_missing_tester(tmp_path):
 def test_the_paper_scale_uses_both_trainers_paper_presets():
     from trainers.config import PRESETS
 
+    PRESETS = PRESETS["mapoca"]
+
     s = balance.SCALES["paper"]
     cfg = balance.tester_config(s, balance.Team())
     assert cfg.content_box

@@ -29,7 +29,7 @@ from trainers.mapoca import (
 )
 from trainers.networks import Actor, Critic, masked_logits
 
-TINY = PRESETS["cpu"].replace(n_arenas=4, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1,
+TINY = PRESETS["mapoca"]["cpu"].replace(n_arenas=4, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1,
                               heads=2, updates_per_chunk=2, total_steps=4 * 8 * 4, checkpoint_every=2,
                               eval_games=4, skill_ranges=(9.0, 13.0))
 
@@ -246,7 +246,7 @@ def test_clipped_update_keeps_ratio_in_bounds(obs3, critic):
 
 
 def test_config_presets_and_json(tmp_path):
-    paper = PRESETS["paper"]
+    paper = PRESETS["mapoca"]["paper"]
     assert (paper.hidden, paper.layers, paper.lr, paper.ent_coef, paper.clip_eps, paper.lam, paper.update_epochs,
             paper.gamma, paper.decisions_per_update) == (256, 2, 3e-4, 0.01, 0.2, 0.95, 3, 0.99, 11 * 256)
     f = tmp_path / "c.json"

@@ -17,14 +17,14 @@ from trainers.config import PRESETS, Config
 from trainers.mapoca import load_policy, make_trainer
 from trainers.networks import Actor, Critic
 
-TINY = PRESETS["cpu"].replace(n_arenas=4, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1,
+TINY = PRESETS["mapoca"]["cpu"].replace(n_arenas=4, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1,
                               heads=2, updates_per_chunk=2, total_steps=4 * 8 * 2, eval_games=4, senses="reference",
                               skill_ranges=(5.0, 17.0), redraw_every=1)  # the redraw path restarts the stack
 FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
 
 
 def test_paper_preset_uses_the_reference_senses():
-    assert PRESETS["paper"].senses == "reference" and PRESETS["cpu"].senses == "raidjax"
+    assert PRESETS["mapoca"]["paper"].senses == "reference" and PRESETS["mapoca"]["cpu"].senses == "raidjax"
     with pytest.raises(ValueError, match=r"^senses: value 'rays'"):
         Config(senses="rays")
     assert Config.from_dict({k: v for k, v in Config().to_dict().items() if k != "senses"}).senses == "raidjax"

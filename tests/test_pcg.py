@@ -101,10 +101,10 @@ def test_observation_modes():
                                          ("n_games", 0), ("gamma", 1.5), ("lr", "1e-3"), ("pool_repeats", 1),
                                          ("total_steps", True), ("lr", float("nan"))])
 def test_ppo_config_rejects_bad_values_naming_the_field(field, value):
-    from trainers.ppo_pcgrl import get_config
+    from trainers.config import load_config
 
     with pytest.raises(ValueError, match=f"^{field}: value {value!r}"):
-        get_config("cpu", **{field: value})
+        load_config("cpu", learner="ppo_pcgrl", **{field: value})
 
 
 def test_pool_repeats_pools_only_an_unchanged_skill():
@@ -192,9 +192,11 @@ def test_pc1_on_the_pooled_axis_and_on_each_groups_own_axis():
 @pytest.mark.parametrize("pool,goal", [(True, 0.5)])
 def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, goal):
     from trainers import checkpoint
-    from trainers.ppo_pcgrl import PPOConfig, make_generator_policy, make_train
+    from trainers.config import PPOConfig
+    from trainers.ppo_pcgrl import make_generator_policy, make_train
 
-    cfg = PPOConfig(n_arenas=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=(8,), n_games=2,
+    cfg = PPOConfig(n_arenas=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=8, layers=1,
+                    n_games=2,
                     max_edits=2, pool_repeats=pool, edit_cost=1.0, goal_cost=goal,
                     goal_axis=(1, 1, 1, 1) if goal else None)
     train = make_train(cfg)
@@ -218,8 +220,9 @@ def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, goal):
 
 _VMAPPED_LEARNERS = """
 import jax, jax.numpy as jnp
-from trainers.ppo_pcgrl import get_config, make_train
-cfg = get_config("paper", n_games=4, hidden=(64, 64))  # smaller configs did not deadlock
+from trainers.config import load_config
+from trainers.ppo_pcgrl import make_train
+cfg = load_config("paper", learner="ppo_pcgrl", n_games=4, hidden=64, layers=2)  # smaller configs did not deadlock
 train = make_train(cfg)
 t = jnp.asarray([[0.3, 0.3], [0.5, 0.5]])
 r = jax.jit(jax.vmap(train.init))(jax.random.split(jax.random.key(0), 2), t)
@@ -251,17 +254,18 @@ def test_make_train_warns_on_cpu_without_the_scheduler_flag(monkeypatch):
     import warnings
 
     from raidjax import xla_flags
-    from trainers.ppo_pcgrl import get_config, make_train
+    from trainers.config import load_config
+    from trainers.ppo_pcgrl import make_train
 
     monkeypatch.setenv("XLA_FLAGS", "")
     if not xla_flags.missing():
         pytest.skip("jaxlib < 0.10 has no such flag")
     with pytest.warns(RuntimeWarning, match="use_recommended_xla_flags"):
-        make_train(get_config("cpu"))
+        make_train(load_config("cpu", learner="ppo_pcgrl"))
     monkeypatch.setenv("XLA_FLAGS", " ".join(xla_flags.RECOMMENDED))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        make_train(get_config("cpu"))
+        make_train(load_config("cpu", learner="ppo_pcgrl"))
 
 
 def heuristic_with_weights(weights, key, obs, state, params):

@@ -31,7 +31,8 @@ def test_goal_observed_kept_through_edits_and_renewed_with_the_episode():
 
 
 def test_goal_penalty_telescopes_to_the_change_of_distance_to_the_goal():
-    from trainers.ppo_pcgrl import PPOConfig, edit_penalty
+    from trainers.config import PPOConfig
+    from trainers.ppo_pcgrl import edit_penalty
 
     cfg = PPOConfig(goal_cost=0.5, goal_axis=(1, 1, 1, 1))
     # range, cast, coefficient high; cool low
@@ -81,7 +82,8 @@ def test_goal_axis_rejects_bad_values_naming_the_field(axis):
 
 
 def test_goal_axis_in_the_learner_config_and_on_the_command_line():
-    from trainers.ppo_pcgrl import PPOConfig, env_params
+    from trainers.config import PPOConfig
+    from trainers.ppo_pcgrl import env_params
     from trainers.ppo_pcgrl_cli import _args
 
     cfg = PPOConfig(goal_cost=0.5, goal_axis=[1, 0, -1, 1])  # as read back from JSON

@@ -34,7 +34,7 @@ def test_agent_step_conversion_by_hand():
 
 
 def test_paper_preset_mirrors_the_reference_yaml():
-    p = PRESETS["paper"]
+    p = PRESETS["mapoca"]["paper"]
     assert (p.anneal_lr, p.max_grad_norm, p.adam_eps, p.anneal_ent) == (False, 0.0, 1e-8, False)
     assert (p.lr, p.ent_coef, p.clip_eps, p.lam, p.update_epochs, p.gamma) == (3e-4, 0.01, 0.2, 0.95, 3, 0.99)
     assert (p.hidden, p.layers, p.heads, p.n_steps) == (256, 2, 4, 256)
@@ -42,7 +42,7 @@ def test_paper_preset_mirrors_the_reference_yaml():
     assert p.redraw_every == 2
     # max_steps 5e7 agent steps = ceil(5e7 / 3) decisions with 3 players alive
     assert p.total_steps == 16_666_667 and 3 * (p.total_steps - 1) < 50_000_000 <= 3 * p.total_steps
-    cpu = PRESETS["cpu"]  # raidjax's own choices stay on the other presets
+    cpu = PRESETS["mapoca"]["cpu"]  # raidjax's own choices stay on the other presets
     assert (cpu.anneal_lr, cpu.max_grad_norm, cpu.adam_eps) == (True, 0.5, 1e-5)
 
 

@@ -1,6 +1,10 @@
-"""Configuration of the MA-POCA trainer: one frozen dataclass, named presets, JSON round-trip.
+"""Configuration of both learners: ``Config`` (MA-POCA) and ``PPOConfig`` (PPO-PCGRL), frozen
+dataclasses whose shared hyper-parameters have the same names; one presets table ``PRESETS``
+(learner -> preset -> config); one loader ``load_config`` (preset, then a JSON file, then
+overrides; every bad field a one-line ``ValueError`` naming it). Runs save their config in their
+run folder and in every checkpoint; ``from_dict`` reads it back.
 
-Units: ``n_arenas x n_steps`` environment *decisions* (every player acts once) per update;
+MA-POCA's units: ``n_arenas x n_steps`` environment *decisions* (every player acts once) per update;
 each decision holds up to ``P = 3`` agent experiences. ML-Agents counts its buffer, batch and
 ``max_steps`` in agent experiences; ``from_agent_steps`` converts them (the ``paper`` preset).
 """
@@ -218,7 +222,7 @@ def from_agent_steps(buffer: int, batch: int, horizon: int, players: int = 3) ->
 PAPER_AGENT_STEPS = 50_000_000  # max_steps of configuration_range5.yaml, in agent steps
 _PAPER_ARENAS, _PAPER_MINIBATCHES = from_agent_steps(buffer=8192, batch=256, horizon=256)
 
-PRESETS: dict[str, Config] = {
+_MAPOCA_PRESETS = {
     # The reference trainer (Experiment/MA/RL_HEURISTIC/configs/configuration_range5.yaml, ML-Agents
     # 0.28 POCA), field by field: buffer 8192 and batch 256 agent experiences (from_agent_steps:
     # 11 arenas x 256 decisions, 32 minibatches), time_horizon 256, 3 epochs, 2 x 256 hidden, 4
@@ -240,6 +244,138 @@ PRESETS: dict[str, Config] = {
 }
 
 
+@dataclasses.dataclass(frozen=True)
+class PPOConfig:
+    """PPO and generator-environment settings (hashable, so it can be a static argument).
+
+    The names shared with ``Config`` (MA-POCA) mean the same: ``n_arenas`` parallel environments
+    (here generator episodes), ``n_steps`` rollout length per update, ``lam`` the λ of GAE,
+    ``hidden`` and ``layers`` the width and depth of the MLPs (actor and critic), and so on.
+    """
+
+    n_arenas: int = 32  # generator episodes stepped in parallel
+    n_steps: int = 8  # rollout horizon per update
+    total_steps: int = 20480  # generator steps (edits) over all arenas
+    update_epochs: int = 8  # samples are expensive (each is 50 games): reuse them more
+    n_minibatches: int = 4
+    lr: float = 2e-3
+    anneal_lr: bool = True
+    gamma: float = 0.95
+    lam: float = 0.9
+    clip_eps: float = 0.2
+    ent_coef: float = 0.003
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    hidden: int = 64
+    layers: int = 2
+    reward_scale: float = 0.1  # the env pays x100 per unit of win rate; the learner sees x10
+    edit_cost: float = 0.0  # learner-side penalty per tick moved (env reward units); 0 = off
+    n_games: int = 50  # playtest games per training measurement
+    target: tuple = (0.05, 0.75)  # (low, high) sampled per episode; (t, t) for a fixed target
+    observe_target: bool = True
+    strict_length: bool = False
+    max_edits: int = 40
+    pool_repeats: bool = False  # env: re-measuring an unchanged skill pools its games (pcg.PCGParams)
+    # A style goal: the env draws a goal at one end of ``goal_axis`` per episode (pcg.PCGParams.goal_axis;
+    # (1, 1, 1, 1) = heavy vs light skills) and the learner pays goal_cost per unit change of the squared
+    # distance to it in ticks, which telescopes to goal_cost * (d^2(final) - d^2(start)): the generator is
+    # paid to end near its goal, spreading its skills along the axis. None / 0 = off.
+    goal_axis: tuple | None = None
+    goal_cost: float = 0.0
+    # The edited parameters (raidjax.pcg.space names, e.g. ("skill1.range", "boss.max_hp=500:3000")) and
+    # the team's class presets; () = the paper's four on three mages.
+    parameters: tuple[str, ...] = ()
+    players: tuple[str, ...] = ("mage", "mage", "mage")
+
+    def __post_init__(self):
+        check_fields(self, {
+            **dict.fromkeys(("n_arenas", "n_steps", "total_steps", "update_epochs", "n_minibatches", "n_games",
+                             "max_edits", "hidden", "layers"), (1, None)),
+            **dict.fromkeys(("lr", "clip_eps", "reward_scale"), (0, None, "> 0")),
+            "gamma": (0, 1), "lam": (0, 1),
+            **dict.fromkeys(("ent_coef", "vf_coef", "max_grad_norm", "edit_cost", "goal_cost"), (0, None))})
+        for name in ("parameters", "players"):  # JSON gives lists; static fields must be hashable
+            value = getattr(self, name)
+            if not isinstance(value, tuple | list) or not all(isinstance(v, str) for v in value):
+                raise ValueError(f"{name}: value {value!r}; allowed: a list of names")
+            object.__setattr__(self, name, tuple(value))
+        space = self.space  # checks the names against the team (ValueError naming the parameter)
+        if self.goal_axis is not None:  # JSON gives a list; the env needs a hashable static field
+            object.__setattr__(self, "goal_axis", pcg.env.check_axis(self.goal_axis, space.size))
+        if (self.goal_axis is None) != (self.goal_cost == 0):
+            raise ValueError(f"goal_cost: value {self.goal_cost} with goal_axis {self.goal_axis}: a style goal "
+                             "needs both (goal_cost > 0 and an axis such as (1, 1, 1, 1)), or neither")
+        batch = self.n_arenas * self.n_steps
+        if batch % self.n_minibatches:
+            raise ValueError(f"n_minibatches: value {self.n_minibatches}; allowed: a divisor of n_arenas * n_steps "
+                             f"= {batch}")
+
+    @property
+    def widths(self) -> tuple[int, ...]:
+        """The MLPs' layer widths, ``(hidden,) * layers``."""
+        return (self.hidden,) * self.layers
+
+    @property
+    def space(self) -> pcg.Space:
+        """The edited parameters (``raidjax.pcg.make_space``: ``parameters`` for ``players``, or the paper's four)."""
+        return pcg.make_space(self.parameters, self.players)
+
+    @property
+    def num_updates(self) -> int:
+        """PPO updates per run (at least 1)."""
+        return max(1, self.total_steps // (self.n_arenas * self.n_steps))
+
+    def replace(self, **kw) -> PPOConfig:
+        """A copy with fields changed; unknown fields raise ``TypeError``."""
+        return dataclasses.replace(self, **kw)
+
+    def to_dict(self) -> dict:
+        """JSON-able dict of every field."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> PPOConfig:
+        """Inverse of ``to_dict`` (JSON lists become tuples; a config saved before ``layers`` existed,
+        ``hidden`` a list of equal widths, is read as ``hidden`` and ``layers``); raises ``ValueError``
+        naming unknown keys or a bad value."""
+        d = upgrade_ppo_fields(d)
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in known_fields(cls, d).items()})
+
+
+_PPO_PRESETS = {
+    # The reference run (GAME.md §10): batch 16, buffer 120, lr 3e-4, entropy 0.005, clip 0.2, λ 0.99,
+    # 3 epochs, 4 x 256, γ 0.99, horizon 30, 20 000 steps; one model per target, target not observed.
+    "paper": PPOConfig(n_arenas=4, n_steps=30, total_steps=20_000, update_epochs=3, n_minibatches=8, lr=3e-4,
+                       anneal_lr=False, gamma=0.99, lam=0.99, clip_eps=0.2, ent_coef=0.005,
+                       hidden=256, layers=4, reward_scale=1.0, n_games=100, observe_target=False),
+    # One model for all targets (target and last win rate observed), many parallel episodes.
+    "cpu": PPOConfig(),
+}
+
+
+
+PRESETS: dict[str, dict[str, Config | PPOConfig]] = {"mapoca": _MAPOCA_PRESETS, "ppo_pcgrl": _PPO_PRESETS}
+LEARNERS = {"mapoca": Config, "ppo_pcgrl": PPOConfig}
+
+
+def upgrade_ppo_fields(d: dict) -> dict:
+    """PPO-PCGRL fields saved before ``layers`` existed (``hidden`` a list of widths) as they are
+    read today: ``hidden`` the width and ``layers`` the count; unequal widths raise ``ValueError``."""
+    h = d.get("hidden")
+    if not isinstance(h, list | tuple):
+        return d
+    if not h or len(set(h)) != 1 or "layers" in d:
+        raise ValueError(f"hidden: value {list(h)!r}; allowed: a whole number (the width; layers: the depth)")
+    return {**d, "hidden": h[0], "layers": len(h)}
+
+
+def upgrade_settings(settings: dict) -> dict:
+    """A run folder's saved settings as today's code writes them (``upgrade_ppo_fields`` on every
+    nested PPO-PCGRL config: a dict with ``n_games`` and ``reward_scale``)."""
+    out = {k: upgrade_settings(v) if isinstance(v, dict) else v for k, v in settings.items()}
+    return upgrade_ppo_fields(out) if {"n_games", "reward_scale"} <= set(out) else out
+
+
 def read_fields(path: str | Path, kind: str) -> dict:
     """The JSON object in the file ``path`` (a dict of ``kind`` fields, unchecked); raises
     ``ValueError`` naming the file and what is wrong when it is unreadable or not an object."""
@@ -252,16 +388,24 @@ def read_fields(path: str | Path, kind: str) -> dict:
     return data
 
 
-def load_config(preset: str = "cpu", path: str | Path | None = None, **overrides) -> Config:
-    """Preset, then the JSON file at ``path`` (a dict of fields), then ``overrides`` (None skipped).
+def load_config(preset: str = "cpu", path: str | Path | None = None, *, learner: str = "mapoca",
+                **overrides) -> Config | PPOConfig:
+    """``PRESETS[learner][preset]``, then the JSON file at ``path`` (a dict of fields), then
+    ``overrides`` (``None`` skipped).
+
+    Args:
+        preset: ``"paper"`` or ``"cpu"``. path: a JSON object of config fields, or ``None``.
+        learner: ``"mapoca"`` (returns a ``Config``) or ``"ppo_pcgrl"`` (a ``PPOConfig``).
 
     Raises:
-        ValueError: unknown preset, an unreadable file, unknown keys or bad values (one line each).
+        ValueError: unknown learner or preset, an unreadable file, unknown keys or bad values
+            (one line each, naming the field).
     """
-    if preset not in PRESETS:
-        raise ValueError(f"preset: unknown {preset!r}; known: {sorted(PRESETS)}")
-    cfg = PRESETS[preset]
+    validate.name("learner", learner, tuple(PRESETS), "learner")
+    if preset not in PRESETS[learner]:
+        raise ValueError(f"preset: unknown {preset!r}; known: {sorted(PRESETS[learner])}")
+    cls, cfg = LEARNERS[learner], PRESETS[learner][preset]
     if path is not None:
-        data = read_fields(path, "Config")
-        cfg = cfg.replace(**Config.from_dict({**cfg.to_dict(), **data}).to_dict())
+        data = read_fields(path, cls.__name__)
+        cfg = cls.from_dict({**cfg.to_dict(), **(upgrade_ppo_fields(data) if learner == "ppo_pcgrl" else data)})
     return cfg.replace(**{k: v for k, v in overrides.items() if v is not None})

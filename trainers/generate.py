@@ -17,7 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg, policies
-from trainers.ppo_pcgrl import PPOConfig, env_params, make_generator_policy
+from trainers.config import PPOConfig
+from trainers.ppo_pcgrl import env_params, make_generator_policy
 
 
 def target_groups(config: PPOConfig, seeds: int) -> tuple[np.ndarray, list[tuple[float | None, int]]]:
@@ -79,7 +80,7 @@ def evaluate(key: jax.Array, config: PPOConfig, weights, labels: list, *, gen_ga
     p = env_params(config, tester=tester, tester_weights=tester_weights).replace(n_games=gen_games)
     p = p.replace(strict_length=p.strict_length if strict_length is None else strict_length,
                   max_edits=p.max_edits if max_edits is None else max_edits)
-    policy = method_policy(tuple(config.hidden), greedy, config.space.size)
+    policy = method_policy(config.widths, greedy, config.space.size)
     n_seeds = max(s for _, s in labels) + 1
     eps = max(1, episodes // n_seeds)
     parts = []

@@ -1,15 +1,15 @@
 """PPO-PCGRL (controllable PCGRL, GAME.md §10) on ``raidjax.pcg``: a PureJaxRL-style, scan-based learner.
 
 ``make_train(config) -> train(key, target=None)``: the whole run as one jittable function
-(vmappable over seeds and, in the per-target mode, over targets). ``trainers.ppo_pcgrl_cli`` runs
-the same update in chunks with progress, metrics and checkpoints::
+(vmappable over seeds and, in the per-target mode, over targets). Its config is
+``trainers.config.PPOConfig``; ``trainers.runs.run_ppo_pcgrl`` runs the same update in chunks
+with progress, metrics and checkpoints (``raidjax train ppo-pcgrl`` on the command line)::
 
     python -m trainers.ppo_pcgrl_cli --preset cpu --total-steps 8192 --seeds 1 --out runs/ppo_cpu
 """
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 from collections.abc import Callable
 from functools import cache
@@ -22,107 +22,7 @@ import numpy as np
 import optax
 
 from raidjax import pcg, policies, xla_flags
-from trainers.config import check_fields, known_fields
-
-
-@dataclasses.dataclass(frozen=True)
-class PPOConfig:
-    """PPO and generator-environment settings (hashable, so it can be a static argument).
-
-    The names shared with ``trainers.config.Config`` (MA-POCA) mean the same: ``n_arenas`` parallel
-    environments (here generator episodes), ``n_steps`` rollout length per update, ``lam`` the λ
-    of GAE, and so on.
-    """
-
-    n_arenas: int = 32  # generator episodes stepped in parallel
-    n_steps: int = 8  # rollout horizon per update
-    total_steps: int = 20480  # generator steps (edits) over all arenas
-    update_epochs: int = 8  # samples are expensive (each is 50 games): reuse them more
-    n_minibatches: int = 4
-    lr: float = 2e-3
-    anneal_lr: bool = True
-    gamma: float = 0.95
-    lam: float = 0.9
-    clip_eps: float = 0.2
-    ent_coef: float = 0.003
-    vf_coef: float = 0.5
-    max_grad_norm: float = 0.5
-    hidden: tuple = (64, 64)
-    reward_scale: float = 0.1  # the env pays x100 per unit of win rate; the learner sees x10
-    edit_cost: float = 0.0  # learner-side penalty per tick moved (env reward units); 0 = off
-    n_games: int = 50  # playtest games per training measurement
-    target: tuple = (0.05, 0.75)  # (low, high) sampled per episode; (t, t) for a fixed target
-    observe_target: bool = True
-    strict_length: bool = False
-    max_edits: int = 40
-    pool_repeats: bool = False  # env: re-measuring an unchanged skill pools its games (pcg.PCGParams)
-    # A style goal: the env draws a goal at one end of ``goal_axis`` per episode (pcg.PCGParams.goal_axis;
-    # (1, 1, 1, 1) = heavy vs light skills) and the learner pays goal_cost per unit change of the squared
-    # distance to it in ticks, which telescopes to goal_cost * (d^2(final) - d^2(start)): the generator is
-    # paid to end near its goal, spreading its skills along the axis. None / 0 = off.
-    goal_axis: tuple | None = None
-    goal_cost: float = 0.0
-    # The edited parameters (raidjax.pcg.space names, e.g. ("skill1.range", "boss.max_hp=500:3000")) and
-    # the team's class presets; () = the paper's four on three mages.
-    parameters: tuple = ()
-    players: tuple = ("mage", "mage", "mage")
-
-    def __post_init__(self):
-        check_fields(self, {
-            **dict.fromkeys(("n_arenas", "n_steps", "total_steps", "update_epochs", "n_minibatches", "n_games",
-                             "max_edits"), (1, None)),
-            **dict.fromkeys(("lr", "clip_eps", "reward_scale"), (0, None, "> 0")),
-            "gamma": (0, 1), "lam": (0, 1),
-            **dict.fromkeys(("ent_coef", "vf_coef", "max_grad_norm", "edit_cost", "goal_cost"), (0, None))})
-        for name in ("parameters", "players"):  # JSON gives lists; static fields must be hashable
-            value = getattr(self, name)
-            if not isinstance(value, tuple | list) or not all(isinstance(v, str) for v in value):
-                raise ValueError(f"{name}: value {value!r}; allowed: a list of names")
-            object.__setattr__(self, name, tuple(value))
-        space = self.space  # checks the names against the team (ValueError naming the parameter)
-        if self.goal_axis is not None:  # JSON gives a list; the env needs a hashable static field
-            object.__setattr__(self, "goal_axis", pcg.env.check_axis(self.goal_axis, space.size))
-        if (self.goal_axis is None) != (self.goal_cost == 0):
-            raise ValueError(f"goal_cost: value {self.goal_cost} with goal_axis {self.goal_axis}: a style goal "
-                             "needs both (goal_cost > 0 and an axis such as (1, 1, 1, 1)), or neither")
-        batch = self.n_arenas * self.n_steps
-        if batch % self.n_minibatches:
-            raise ValueError(f"n_minibatches: value {self.n_minibatches}; allowed: a divisor of n_arenas * n_steps "
-                             f"= {batch}")
-
-    @property
-    def space(self) -> pcg.Space:
-        """The edited parameters (``raidjax.pcg.make_space``: ``parameters`` for ``players``, or the paper's four)."""
-        return pcg.make_space(self.parameters, self.players)
-
-    @property
-    def num_updates(self) -> int:
-        """PPO updates per run (at least 1)."""
-        return max(1, self.total_steps // (self.n_arenas * self.n_steps))
-
-    def replace(self, **kw) -> PPOConfig:
-        """A copy with fields changed; unknown fields raise ``TypeError``."""
-        return dataclasses.replace(self, **kw)
-
-    def to_dict(self) -> dict:
-        """JSON-able dict of every field."""
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> PPOConfig:
-        """Inverse of ``to_dict`` (JSON lists become tuples); raises ``ValueError`` naming unknown keys."""
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in known_fields(cls, d).items()})
-
-
-PRESETS = {
-    # The reference run (GAME.md §10): batch 16, buffer 120, lr 3e-4, entropy 0.005, clip 0.2, λ 0.99,
-    # 3 epochs, 4 x 256, γ 0.99, horizon 30, 20 000 steps; one model per target, target not observed.
-    "paper": PPOConfig(n_arenas=4, n_steps=30, total_steps=20_000, update_epochs=3, n_minibatches=8, lr=3e-4,
-                       anneal_lr=False, gamma=0.99, lam=0.99, clip_eps=0.2, ent_coef=0.005,
-                       hidden=(256, 256, 256, 256), reward_scale=1.0, n_games=100, observe_target=False),
-    # One model for all targets (target and last win rate observed), many parallel episodes.
-    "cpu": PPOConfig(),
-}
+from trainers.config import PPOConfig
 
 
 class ActorCritic(nn.Module):
@@ -214,7 +114,7 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
         warnings.warn("vmapping several PPO-PCGRL learners can deadlock XLA:CPU's concurrency-optimised "
                       "scheduler; call raidjax.use_recommended_xla_flags() before the first JAX computation "
                       "(raidjax.xla_flags)", RuntimeWarning, stacklevel=2)
-    net = ActorCritic(tuple(config.hidden), config.space.size)
+    net = ActorCritic(config.widths, config.space.size)
     batch = config.n_arenas * config.n_steps
     mb = batch // config.n_minibatches
 
@@ -327,11 +227,3 @@ def make_generator_policy(hidden: tuple, greedy: bool = False, n_params: int = p
         return action.astype(jnp.int32)
 
     return policy
-
-
-def get_config(preset: str, **overrides: Any) -> PPOConfig:
-    """``PRESETS[preset]`` with non-``None`` overrides applied; raises ``ValueError`` naming an
-    unknown preset."""
-    if preset not in PRESETS:
-        raise ValueError(f"preset: unknown {preset!r}; known: {sorted(PRESETS)}")
-    return dataclasses.replace(PRESETS[preset], **{k: v for k, v in overrides.items() if v is not None})

@@ -18,8 +18,7 @@ import argparse
 from raidjax import pcg
 from raidjax.io import HelpFormatter, run_cli, whole_number_arg
 from trainers import checkpoint
-from trainers.config import read_fields
-from trainers.ppo_pcgrl import PRESETS, PPOConfig, get_config
+from trainers.config import PRESETS, load_config
 from trainers.runfolder import add_run_arguments
 from trainers.runs import run_ppo_pcgrl
 
@@ -27,7 +26,7 @@ from trainers.runs import run_ppo_pcgrl
 def _args(argv=None):
     ap = argparse.ArgumentParser(prog="python -m trainers.ppo_pcgrl_cli", description="PPO-PCGRL on raidjax.pcg",
                                  formatter_class=HelpFormatter)
-    ap.add_argument("--preset", choices=sorted(PRESETS), default="cpu", help="budget and network preset")
+    ap.add_argument("--preset", choices=sorted(PRESETS["ppo_pcgrl"]), default="cpu", help="budget and network preset")
     ap.add_argument("--config", help="JSON file of PPOConfig fields, applied after the preset and before the "
                     "flags below (default: none)")
     ap.add_argument("--players", nargs="+", help="the team's class presets, e.g. warrior mage priest "
@@ -69,16 +68,6 @@ def _args(argv=None):
     return ap.parse_args(argv)
 
 
-def load_fields(path: str | None) -> dict:
-    """The ``PPOConfig`` fields in the JSON file ``path`` (``{}`` without one); raises ``ValueError``
-    naming the file and what is wrong, or the unknown keys."""
-    if path is None:
-        return {}
-    data = read_fields(path, "PPOConfig")
-    PPOConfig.from_dict(data)  # unknown keys and bad values fail here, naming the field
-    return {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
-
-
 def main(argv=None) -> dict | None:
     """Train, checkpoint, evaluate (``trainers.runs.run_ppo_pcgrl``); the last stdout line is one
     JSON object (also returned)."""
@@ -88,7 +77,7 @@ def main(argv=None) -> dict | None:
                  goal_cost=args.goal_cost, goal_axis=args.goal_axis,
                  players=args.players and tuple(args.players), parameters=args.parameters and tuple(args.parameters))
     flags = {k: v for k, v in flags.items() if v is not None}
-    config = get_config(args.preset, **{**load_fields(args.config), **flags})  # preset, then file, then flags
+    config = load_config(args.preset, args.config, learner="ppo_pcgrl", **flags)  # preset, then file, then flags
     evaluation = {k: getattr(args, k) for k in ("eval_episodes", "eval_gen_games", "eval_games", "greedy",
                                                 "no_baselines")}
     return run_ppo_pcgrl(config, args.out, preset=args.preset, seeds=args.seeds, seed=args.seed, chunk=args.chunk,

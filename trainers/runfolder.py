@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from raidjax.io import atomic_write, finite_json, fmt_seconds, machine
+from trainers.config import upgrade_settings
 
 
 class RunFolderError(ValueError):
@@ -121,6 +122,7 @@ class RunFolder:
                 old = json.loads(cfg_path.read_text())
             except json.JSONDecodeError as e:
                 raise RunFolderError(f"{cfg_path} is not valid JSON ({e}); the run cannot be resumed") from e
+            old = upgrade_settings(old)  # a run saved by older code, as today's code writes it
             diff = _differences({k: v for k, v in old.items() if k not in ignore},
                                 {k: v for k, v in config.items() if k not in ignore})
             if diff:

@@ -4,7 +4,7 @@ settings recorded, ``trainers.loop.train`` driving the chunks, then the final ev
 their flags into these calls; ``experiments.balance`` calls them directly.
 
     result = run_mapoca(load_config("cpu", skill_ranges=(13.0,)), "runs/r13", preset="cpu")
-    result = run_ppo_pcgrl(get_config("cpu", total_steps=8192), "runs/ppo", preset="cpu")
+    result = run_ppo_pcgrl(load_config("cpu", learner="ppo_pcgrl", total_steps=8192), "runs/ppo", preset="cpu")
 
 The adapters ``mapoca_learner`` and ``ppo_learner`` turn each algorithm into a
 ``trainers.loop.Learner``; Benchmark 1 and Benchmark 2 train through them too.
@@ -27,12 +27,12 @@ import raidjax
 from raidjax import pcg
 from raidjax.io import atomic_write, finite_json, machine
 from trainers import checkpoint
-from trainers.config import Config
+from trainers.config import Config, PPOConfig
 from trainers.generate import evaluate, target_groups
 from trainers.loop import Learner, train
 from trainers.mapoca import load_policy, make_trainer, summarize
 from trainers.metrics import update_rows
-from trainers.ppo_pcgrl import PPOConfig, make_train
+from trainers.ppo_pcgrl import make_train
 from trainers.runfolder import RunFolder
 
 
@@ -206,7 +206,7 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
     PCG-RD.
 
     Args:
-        config: the generator's config (``trainers.ppo_pcgrl.get_config``).
+        config: the generator's config (``trainers.config.load_config(..., learner="ppo_pcgrl")``).
         out: the run folder. preset: the preset's name, recorded. seeds: seeds per target group.
         seed: base PRNG seed. chunk: updates per jitted chunk (progress and checkpoint period).
         resume, max_chunks: as ``run_mapoca``.

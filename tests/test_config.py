@@ -1,0 +1,52 @@
+"""One config module for both learners (``trainers.config``): shared names, one presets table, one
+loader with one-line errors, and configs saved by older code read back."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+from trainers.config import PRESETS, Config, PPOConfig, load_config
+from trainers.runfolder import RunFolder
+
+SHARED = ("n_arenas", "n_steps", "total_steps", "update_epochs", "n_minibatches", "lr", "anneal_lr", "gamma", "lam",
+          "clip_eps", "ent_coef", "max_grad_norm", "hidden", "layers", "players", "parameters")
+
+
+def test_the_same_hyper_parameter_has_the_same_name_and_type_in_both_learners():
+    ma, ppo = ({f.name: f.type for f in dataclasses.fields(c)} for c in (Config, PPOConfig))
+    for name in SHARED:
+        assert ma[name] == ppo[name], name
+    assert set(PRESETS) == {"mapoca", "ppo_pcgrl"} and all(set(p) == {"paper", "cpu"} for p in PRESETS.values())
+    assert PRESETS["ppo_pcgrl"]["paper"].widths == (256, 256, 256, 256)  # GAME.md: 4 x 256 tanh layers
+    assert PRESETS["mapoca"]["paper"].hidden == 256 and PRESETS["mapoca"]["paper"].layers == 2  # 2 x 256
+
+
+@pytest.mark.parametrize("learner", ["mapoca", "ppo_pcgrl"])
+@pytest.mark.parametrize("fields,message", [({"hidden": "wide"}, "hidden: value 'wide'"),
+                                            ({"lr": -1.0}, "lr: value -1.0"),
+                                            ({"n_arenaz": 4}, "config: unknown keys ['n_arenaz']")])
+def test_a_wrong_field_in_a_saved_config_is_one_line_naming_it(tmp_path, learner, fields, message):
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(fields))
+    with pytest.raises(ValueError) as e:
+        load_config("cpu", path, learner=learner)
+    assert str(e.value).startswith(message) and "\n" not in str(e.value)
+
+
+def test_a_ppo_config_saved_with_hidden_as_a_list_reads_back_and_its_run_resumes(tmp_path):
+    # Before `layers` existed PPOConfig saved hidden as a list of widths (checkpoints, config.json).
+    old = {**PPOConfig().to_dict(), "hidden": [32, 32]}
+    del old["layers"]
+    assert PPOConfig.from_dict(old) == PPOConfig(hidden=32, layers=2)
+    with pytest.raises(ValueError, match=r"^hidden: value \[32, 16\]"):
+        PPOConfig.from_dict({"hidden": [32, 16]})
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "config.json").write_text(json.dumps({"benchmark": 2, "ppo_config": old}))
+    now = {"benchmark": 2, "ppo_config": PPOConfig(hidden=32, layers=2).to_dict()}
+    assert RunFolder(out, now, resume=True).resumed
+    with pytest.raises(ValueError, match="ppo_config.hidden: saved 32, now 64"):
+        RunFolder(out, {"benchmark": 2, "ppo_config": PPOConfig().to_dict()}, resume=True)

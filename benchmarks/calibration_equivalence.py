@@ -41,7 +41,7 @@ def main() -> None:
     tables, seconds = {}, {}
     for i, (name, k) in enumerate(ways.items()):
         t0 = time.perf_counter()
-        tables[name] = calibrate.measure(args.games, seed=args.seed + i, games_per_arena=k)
+        tables[name] = calibrate.calibration_table(args.games, seed=args.seed + i, games_per_arena=k)
         seconds[name] = round(time.perf_counter() - t0, 1)
     a, b = (tables[n] for n in ways)
     cells = []

@@ -183,7 +183,7 @@ def heatmap_figure(maps: np.ndarray, agents, ranges, games: int | None = None):
 
 
 def load_heatmaps(path) -> dict:
-    """``heatmaps.npz`` (``experiments.benchmark1.heatmaps``) as ``{"maps": float[A, R, P, B, B],
+    """``heatmaps.npz`` (``experiments.benchmark1.stage_heatmaps``) as ``{"maps": float[A, R, P, B, B],
     "agents": str[A], "ranges": float[R]}``."""
     with np.load(path) as d:
         return {"maps": d["maps"], "agents": [str(a) for a in d["agents"]], "ranges": [float(r) for r in d["ranges"]]}

@@ -169,7 +169,7 @@ def _training_wins(row: dict) -> str:
     return "training win " + "  ".join(f"{g} {np.mean(w):.2f}" for g, w in groups.items() if g != "mixed")
 
 
-def train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chunks: int | None = None,
+def stage_train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chunks: int | None = None,
           protocol: str = "paper") -> dict:
     """Train every run together (resuming from the last checkpoint; ``trainers.loop``); returns
     timing figures. ``max_chunks`` stops after that many chunks of this invocation (raises
@@ -242,7 +242,7 @@ def eval_cells(runs: list[dict]) -> list[tuple[int, str, float, int]]:
     return cells
 
 
-def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str = "paper") -> dict:
+def stage_evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str = "paper") -> dict:
     """Win rates of every cell; returns ``{"cells": [...]}`` (one dict per cell)."""
     actor, weights, senses = load_actors(rf, scale, runs, base_seed, protocol)
     cells = eval_cells(runs)
@@ -276,7 +276,7 @@ def evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, prot
     return {"cells": rows}
 
 
-def heatmaps(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str = "paper") -> dict:
+def stage_heatmaps(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str = "paper") -> dict:
     """Occupancy maps of MA-POCA1 and MA-POCA3 (seed 0) over ``heatmap_ranges`` (test content);
     saved as ``heatmaps.npz`` (``[agent, range, player, 24, 24]``)."""
     actor, weights, senses = load_actors(rf, scale, runs, base_seed, protocol)
@@ -319,12 +319,12 @@ def main(argv=None) -> dict:
     from experiments import b1_report
 
     try:
-        timing = rf.stage("train", lambda: train(rf, scale, runs, args.seed, args.max_chunks, args.protocol))
+        timing = rf.stage("train", lambda: stage_train(rf, scale, runs, args.seed, args.max_chunks, args.protocol))
     except Interrupted as e:
         rf.log(str(e))
         return {"interrupted": True}
-    ev = rf.stage("evaluate", lambda: evaluate(rf, scale, runs, args.seed, args.protocol))
-    rf.stage("heatmaps", lambda: heatmaps(rf, scale, runs, args.seed, args.protocol))
+    ev = rf.stage("evaluate", lambda: stage_evaluate(rf, scale, runs, args.seed, args.protocol))
+    rf.stage("heatmaps", lambda: stage_heatmaps(rf, scale, runs, args.seed, args.protocol))
     summary = rf.stage("report", lambda: b1_report.report(rf, ev["cells"], timing))
     return rf.finish({"benchmark": 1, "scale": args.scale, "protocol": args.protocol, **summary, "train": timing})
 

@@ -44,7 +44,7 @@ from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_
 from raidjax.pcg import metrics as pm
 from trainers import checkpoint, loop
 from trainers.config import PPOConfig, load_config
-from trainers.generate import evaluate, target_groups
+from trainers.generate import generate_episodes, target_groups
 from trainers.runfolder import RunFolder, add_run_arguments
 from trainers.runs import ppo_learner
 
@@ -220,7 +220,7 @@ def protocol_of(scale: Scale, name: str) -> pm.Protocol:
 
 
 def generation_kwargs(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: int) -> dict:
-    """``trainers.generate.evaluate``'s keyword arguments under a protocol: per-edit games, greedy,
+    """``trainers.generate.generate_episodes``'s keyword arguments under a protocol: per-edit games, greedy,
     strict length, measured edits per episode (``pr.max_edits(max_edits)``), re-measurement games
     (0: none)."""
     return dict(gen_games=scale.gen_games if pr.remeasure else scale.eval_games, greedy=pr.greedy,
@@ -243,7 +243,8 @@ def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "pap
         path = run.path("gen_parts", f"part_{i:03d}.npz")
         if not path.exists():
             t = time.perf_counter()
-            gens = evaluate(jax.random.fold_in(jax.random.key(seed + 1), i), lr.config, params, lr.labels, **kwargs)
+            key = jax.random.fold_in(jax.random.key(seed + 1), i)
+            gens = generate_episodes(key, lr.config, params, lr.labels, **kwargs)
             save_generated(path, gens)
             done_here += 1
             eta = (time.perf_counter() - t0) / done_here * (scale.parts - i - 1)

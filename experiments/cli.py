@@ -21,7 +21,7 @@ import sys
 # (words, module, extra it needs or None, one line of help); in the order --help lists them.
 COMMANDS = (
     ("calibrate", "raidjax.calibrate", None, "PT-HR / PT-RD win rates beside the paper's table"),
-    ("render", "trainers.render", None, "a replay GIF of one episode (a trained MA-POCA team needs [train])"),
+    ("render", "trainers.render_cli", None, "a replay GIF of one episode (a trained MA-POCA team needs [train])"),
     ("train mapoca", "trainers.mapoca_cli", "train", "train a MA-POCA team in a resumable run folder"),
     ("train ppo-pcgrl", "trainers.ppo_pcgrl_cli", "train", "train the PPO-PCGRL content generator"),
     ("benchmark 1", "experiments.benchmark1", "experiments", "Benchmark 1 (playtesting agents), end to end"),

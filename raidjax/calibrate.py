@@ -31,7 +31,7 @@ TOLERANCE = {"heuristic": 0.10, "random": 0.05}
 LABEL = {"heuristic": "PT-HR", "random": "PT-RD"}
 
 
-def measure(n_games: int, seed: int = 0, ranges=RANGES, config: raidjax.EnvConfig | None = None,
+def calibration_table(n_games: int, seed: int = 0, ranges=RANGES, config: raidjax.EnvConfig | None = None,
             games_per_arena: int | None = None) -> dict:
     """Win rates of PT-HR and PT-RD at each range.
 
@@ -103,7 +103,7 @@ def main(argv=None) -> int:
     print(f"Playing {args.games} games per cell, {len(RANGES) * 2} cells, rules {args.rules!r}, "
           f"{args.substeps} sub-steps, seed {args.seed}, on {jax.devices()[0].platform} ...",
           file=sys.stderr, flush=True)
-    table = measure(args.games, args.seed, config=config)
+    table = calibration_table(args.games, args.seed, config=config)
     seconds = time.perf_counter() - t0
     print(f"Rules {args.rules!r}, {args.substeps} sub-steps per decision, seed {args.seed}.\n")
     print(markdown(table, args.games))

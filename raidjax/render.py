@@ -5,7 +5,7 @@ and a line to its target, players coloured by slot, HP bars, casting rings, miss
 attacks.
 
     python -m raidjax.render --policy heuristic --skill-range 9 --out replay.gif
-    python -m trainers.render --policy runs/mapoca_cpu_r9 --skill-range 9 --out team.gif   # a trained team
+    python -m trainers.render_cli --policy runs/mapoca_cpu_r9 --skill-range 9 --out team.gif   # a trained team
 
 (``raidjax render ...`` is the second: ``experiments.cli``.)
 """
@@ -152,7 +152,7 @@ def _check_policy(name: str, load_policy: Callable | None, find_run: Callable[[s
     hint = f"; did you mean {close[0]!r}?" if close else ""
     if load_policy is None:
         raise ValueError(f"--policy: value {name!r} is not a built-in policy; allowed: one of {names} (a trained "
-                         "MA-POCA run folder renders with python -m trainers.render, which needs pip install -e "
+                         "MA-POCA run folder renders with python -m trainers.render_cli, which needs pip install -e "
                          f"'.[train]'){hint}")
     why = find_run(name) if find_run is not None else None
     if why:
@@ -164,7 +164,7 @@ def _check_policy(name: str, load_policy: Callable | None, find_run: Callable[[s
 def main(argv=None, load_policy: Callable | None = None, find_run: Callable[[str], str | None] | None = None,
          prog: str = "python -m raidjax.render") -> None:
     """The replay command. ``load_policy(path) -> (policy, weights)`` turns a ``--policy`` that is not a
-    built-in name into a policy (``trainers.render`` passes the MA-POCA loader) once
+    built-in name into a policy (``trainers.render_cli`` passes the MA-POCA loader) once
     ``find_run(path)`` accepted it (``None``; otherwise it returns why not); without them only the
     built-in policies are accepted. Every flag is checked before anything compiles (``ValueError``,
     one line naming the flag, the value and what is allowed)."""

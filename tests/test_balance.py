@@ -93,10 +93,10 @@ def test_pcg_heuristic_moves_the_picked_parameter_toward_easier_in_any_space():
     for w, sign in ((0.0, 1), (1.0, -1)):  # below the target: easier; above it: harder
         st = state.replace(win_rate=jnp.float32(w), target=jnp.float32(0.5))
         for s in range(12):
-            act = np.asarray(pcg.heuristic_policy(None, jax.random.PRNGKey(s), None, st, params))
+            act = np.asarray(pcg.pcg_hr(None, jax.random.PRNGKey(s), None, st, params))
             (j,) = np.flatnonzero(act != pcg.env.NOOP_ACTION)
             assert act[j] - pcg.env.NOOP_ACTION == sign * params.space.easier[j]
-    assert pcg.random_policy(None, jax.random.PRNGKey(1), None, state, params).shape == (8,)
+    assert pcg.pcg_rd(None, jax.random.PRNGKey(1), None, state, params).shape == (8,)
 
 
 def _rows(path):

@@ -34,17 +34,17 @@ MISTAKES = [
      f"error: --out: value '{{tmp}}/replay.png' does not end in .gif; {OUT_GIF}"),
     ("render-policy-mistyped", "raidjax.render", ["--policy", "heurstic"],
      f"error: --policy: value 'heurstic' is not a built-in policy; allowed: one of {POLICIES}"),
-    ("trainers-render-policy-mistyped", "trainers.render", ["--policy", "heurstic"],
+    ("trainers-render-policy-mistyped", "trainers.render_cli", ["--policy", "heurstic"],
      "error: --policy: value 'heurstic' is neither a built-in policy nor a run folder holding a checkpoint "
      f"(no such folder); allowed: one of {POLICIES}, or a trained MA-POCA run folder"),
-    ("trainers-render-policy-no-checkpoint", "trainers.render", ["--policy", "{tmp}/run_without_checkpoint"],
+    ("trainers-render-policy-no-checkpoint", "trainers.render_cli", ["--policy", "{tmp}/run_without_checkpoint"],
      "error: --policy: value '{tmp}/run_without_checkpoint' is neither a built-in policy nor a run folder "
      "holding a checkpoint (no finished checkpoint in it)"),
     ("render-decisions-0", "raidjax.render", ["--decisions", "0"],
      "argument --decisions: value '0'; allowed: a whole number in [1, 2000]"),
     ("render-skill-range-out-of-range", "raidjax.render", ["--skill-range", "50"],
      "argument --skill-range: value '50'; allowed: a number in [1, 20]"),
-    ("render-unknown-class", "trainers.render", ["--players", "mage", "wizard"],
+    ("render-unknown-class", "trainers.render_cli", ["--players", "mage", "wizard"],
      f"error: --players: value 'mage wizard' names an unknown class 'wizard'; allowed: 1 to 8 class presets "
      f"(space-separated) from {KNOWN_CLASSES}"),
     ("calibrate-games-0", "raidjax.calibrate", ["--games", "0"],
@@ -118,7 +118,7 @@ def test_a_missing_extra_is_named_in_one_line(tmp_path):
     p = _run([], tmp_path, block.format("['render', '--policy', 'runs/x']"))  # render: the simulator's own command
     assert p.returncode == 2 and p.stderr.strip().startswith(
         f"error: --policy: value 'runs/x' is not a built-in policy; allowed: one of {POLICIES} (a trained MA-POCA "
-        "run folder renders with python -m trainers.render, which needs pip install -e '.[train]')"), p.stderr
+        "run folder renders with python -m trainers.render_cli, which needs pip install -e '.[train]')"), p.stderr
     assert not list(tmp_path.iterdir())
 
 

@@ -314,7 +314,7 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
     assert _playtest._cache_size() == before + 1
 
     # The replay command renders the trained team (its weights go to record_episode as an argument).
-    from trainers import render
+    from trainers import render_cli as render
 
     gif = tmp_path / "team.gif"
     render.main(["--policy", str(tmp_path), "--skill-range", "9", "--decisions", "3", "--out", str(gif)])

@@ -36,7 +36,7 @@ def test_heuristic_moves_each_parameter_the_right_way(w, target, easier):
     st = _state(target=target, w=w)
     seen = set()
     for i in range(64):
-        a = np.asarray(pcg.heuristic_policy(None, jax.random.key(i), None, st, p))
+        a = np.asarray(pcg.pcg_hr(None, jax.random.key(i), None, st, p))
         moved = np.flatnonzero(a != pcg.env.NOOP_ACTION)
         assert moved.size == 1  # one parameter, half a tick
         j = int(moved[0])
@@ -52,9 +52,9 @@ def test_heuristic_moves_each_parameter_the_right_way(w, target, easier):
 
 def test_heuristic_idle_in_band_and_random_policy_range():
     p = pcg.make_pcg_params(n_games=4)
-    a = pcg.heuristic_policy(None, jax.random.key(0), None, _state(target=0.5, w=0.51), p)
+    a = pcg.pcg_hr(None, jax.random.key(0), None, _state(target=0.5, w=0.51), p)
     assert (np.asarray(a) == pcg.env.NOOP_ACTION).all()
-    acts = np.stack([np.asarray(pcg.random_policy(None, jax.random.key(i), None, None, p)) for i in range(50)])
+    acts = np.stack([np.asarray(pcg.pcg_rd(None, jax.random.key(i), None, None, p)) for i in range(50)])
     assert acts.min() == 0 and acts.max() == 4 and acts.shape == (50, 4)
 
 

@@ -211,11 +211,11 @@ def test_strict_episodes_keep_the_last_measurement():
     game = pcg.base_game().replace(config=raidjax.EnvConfig(max_decisions=60, n_substeps=1))
     strict = pcg.make_pcg_params(target=0.0, n_games=2, max_edits=3, strict_length=True).replace(game=game)
     key = jax.random.PRNGKey(0)
-    g = pm.generate(key, pcg.random_policy, strict, targets=(0.0,), episodes=12, eval_games=0)
+    g = pm.generate(key, pcg.pcg_rd, strict, targets=(0.0,), episodes=12, eval_games=0)
     assert (g["edits"] == 3).all()
     np.testing.assert_array_equal(g["win_rate"], g["gen_win_rate"])
     assert np.allclose(g["win_rate"] * 2, np.round(g["win_rate"] * 2))
-    loose = pm.generate(key, pcg.random_policy, strict.replace(strict_length=False), targets=(0.0,), episodes=12,
+    loose = pm.generate(key, pcg.pcg_rd, strict.replace(strict_length=False), targets=(0.0,), episodes=12,
                         eval_games=0)
     assert (loose["edits"] < 3).any() and (loose["edits"][loose["edits"] < 3] >= 1).all()
     assert loose["reached"][loose["edits"] < 3].all()

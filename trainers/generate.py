@@ -1,7 +1,7 @@
 """Generation with a trained PPO generator beside the paper's baselines (PCG-HR, PCG-RD), on one
 protocol: the library behind ``trainers.ppo_pcgrl_cli`` and ``experiments.benchmark2``.
 
-    gens = evaluate(key, config, weights, labels, gen_games=300, greedy=True, episodes=20,
+    gens = generate_episodes(key, config, weights, labels, gen_games=300, greedy=True, episodes=20,
                     eval_games=0, strict_length=True, max_edits=39)
     summary = raidjax.pcg.metrics.summarize(gens, protocol)
 """
@@ -47,13 +47,13 @@ def method_policy(hidden: tuple, greedy: bool = False, n_params: int = pcg.env.N
     def policy(pp, key, obs, state, params):
         return jax.lax.switch(pp["method"], [
             lambda: ppo(pp["net"], key, obs, state, params),
-            lambda: pcg.heuristic_policy(None, key, obs, state, params),
-            lambda: pcg.random_policy(None, key, obs, state, params)])
+            lambda: pcg.pcg_hr(None, key, obs, state, params),
+            lambda: pcg.pcg_rd(None, key, obs, state, params)])
 
     return policy
 
 
-def evaluate(key: jax.Array, config: PPOConfig, weights, labels: list, *, gen_games: int, greedy: bool,
+def generate_episodes(key: jax.Array, config: PPOConfig, weights, labels: list, *, gen_games: int, greedy: bool,
              episodes: int, eval_games: int, baselines: bool = True, strict_length: bool | None = None,
              max_edits: int | None = None, tester: Callable = policies.heuristic,
              tester_weights: Any = None) -> dict[str, dict[str, np.ndarray]]:

@@ -28,7 +28,7 @@ from raidjax import pcg
 from raidjax.io import atomic_write, finite_json, machine
 from trainers import checkpoint
 from trainers.config import Config, PPOConfig
-from trainers.generate import evaluate, target_groups
+from trainers.generate import generate_episodes, target_groups
 from trainers.loop import Learner, train
 from trainers.mapoca import load_policy, make_trainer, summarize
 from trainers.metrics import update_rows
@@ -247,7 +247,7 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
            "total_steps": config.num_updates * config.n_arenas * config.n_steps, "groups": len(labels),
            "n_games": config.n_games, "cpu_count": os.cpu_count()}
     if ev["eval_episodes"] > 0:
-        gens = evaluate(jax.random.key(seed + 1), config, done.state["params"], labels,
+        gens = generate_episodes(jax.random.key(seed + 1), config, done.state["params"], labels,
                         gen_games=ev["eval_gen_games"], greedy=ev["greedy"], episodes=ev["eval_episodes"],
                         eval_games=ev["eval_games"], baselines=not ev["no_baselines"], **team)
         summ = pcg.metrics.summarize(gens)

@@ -9,7 +9,7 @@ generation runs with the controllability / diversity metrics (``raidjax.pcg.metr
 """
 
 from raidjax.pcg import env, metrics, space
-from raidjax.pcg.baselines import heuristic_policy, random_policy
+from raidjax.pcg.baselines import pcg_hr, pcg_rd
 from raidjax.pcg.env import (
     PCGParams,
     PCGState,
@@ -26,7 +26,7 @@ from raidjax.pcg.space import PAPER_SPACE, Space, make_space, parse_space
 
 # What users call; the environment's building blocks stay in ``raidjax.pcg.env``.
 __all__ = [
-    "PAPER_SPACE", "Space", "PCGParams", "PCGState", "base_game", "heuristic_policy", "random_policy", "in_band",
+    "PAPER_SPACE", "Space", "PCGParams", "PCGState", "base_game", "pcg_hr", "pcg_rd", "in_band",
     "make_pcg_params", "make_space", "measure", "parse_space", "play_outcomes", "reset", "step", "step_autoreset",
     "env", "metrics", "space",
 ]

@@ -13,12 +13,12 @@ import jax.numpy as jnp
 from raidjax.pcg.env import N_CHOICES, NOOP_ACTION, PCGParams, PCGState
 
 
-def random_policy(policy_params, key: jax.Array, obs: jax.Array, state: PCGState, params: PCGParams) -> jax.Array:
+def pcg_rd(policy_params, key: jax.Array, obs: jax.Array, state: PCGState, params: PCGParams) -> jax.Array:
     """PCG-RD: a uniformly random choice on each of the K branches. Returns ``int32[K]``."""
     return jax.random.randint(key, (params.space.size,), 0, N_CHOICES, jnp.int32)
 
 
-def heuristic_policy(policy_params, key: jax.Array, obs: jax.Array, state: PCGState, params: PCGParams) -> jax.Array:
+def pcg_hr(policy_params, key: jax.Array, obs: jax.Array, state: PCGState, params: PCGParams) -> jax.Array:
     """PCG-HR (the paper's Algorithm 2): nothing if ``|w - t| < band``; else one random parameter
     moved half a tick toward easier (range up, cool down, cast down, coefficient up; for another
     space its ``easier`` signs, ``raidjax.pcg.space.EASIER_FIELDS``) when ``w < t``, toward harder

@@ -2,7 +2,7 @@
 plus the playtest-noise measurement.
 
 ``generate`` runs any generator policy ``policy(policy_params, key, obs, state, params) ->
-int32[4]`` (``raidjax.pcg.random_policy``, ``heuristic_policy`` or a trained PPO policy) for E
+int32[4]`` (``raidjax.pcg.pcg_rd``, ``pcg_hr`` or a trained PPO policy) for E
 episodes per target, all episodes in parallel, and keeps each episode's last skill: either with
 the generator's own last measurement (``eval_games=0``, the paper's protocol) or re-measured
 with ``eval_games`` games (raidjax's protocol). The metric functions are plain numpy on the

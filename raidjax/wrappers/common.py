@@ -34,7 +34,7 @@ def start(key: jax.Array, params: Params) -> tuple[Observation, ArenaState]:
     return obs, ArenaState(game=game, params=params, time=jnp.int32(0))
 
 
-def advance(key: jax.Array, state: ArenaState, actions: jax.Array):
+def step_arena(key: jax.Array, state: ArenaState, actions: jax.Array):
     """One decision, then the arena's next episode (``raidjax.next_episode``, which keeps what the
     reference rules carry) if this one ended.
 

@@ -42,7 +42,7 @@ from raidjax.env import check_actions, team_reward
 from raidjax.observation import observe
 from raidjax.spaces import spaces
 from raidjax.types import DRAW, LOSS, WIN, Observation, Params
-from raidjax.wrappers.common import ArenaState, advance, start
+from raidjax.wrappers.common import ArenaState, start, step_arena
 
 
 class _RaidView(Environment):
@@ -86,7 +86,7 @@ class _RaidView(Environment):
         k_act, k_step = jax.random.split(key)
         now = observe(state.game, params)
         actions = check_actions(self._actions(k_act, jnp.asarray(action), now, state), params)
-        obs, new, reward, terminated, truncated, info, final = advance(k_step, state, actions)
+        obs, new, reward, terminated, truncated, info, final = step_arena(k_step, state, actions)
         info = {**info, "terminated": terminated, "truncated": truncated, "returned_episode": terminated | truncated,
                 "final_observation": self._observation(final)}
         return self._observation(obs), new, self._reward(reward, info), terminated, truncated, info

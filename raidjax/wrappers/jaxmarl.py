@@ -38,7 +38,7 @@ from raidjax.env import check_actions
 from raidjax.observation import action_mask, observe
 from raidjax.spaces import spaces
 from raidjax.types import RUNNING, Params
-from raidjax.wrappers.common import ArenaState, advance, start
+from raidjax.wrappers.common import ArenaState, start, step_arena
 
 
 class RaidMultiAgentEnv(MultiAgentEnv):
@@ -83,7 +83,7 @@ class RaidMultiAgentEnv(MultiAgentEnv):
     def step_env(self, key: jax.Array, state: ArenaState, actions: dict):
         """One decision with the auto-reset to the arena's next episode built in."""
         acts = check_actions(jnp.stack([self._agent_action(actions, a) for a in self.agents]), state.params)
-        obs, new, reward, terminated, truncated, info, _ = advance(key, state, acts)
+        obs, new, reward, terminated, truncated, info, _ = step_arena(key, state, acts)
         ended = terminated | truncated
         n = self.num_agents
         per_agent = lambda x: jnp.broadcast_to(x, (n,))

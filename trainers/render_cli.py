@@ -1,6 +1,6 @@
 """Replay GIFs of trained MA-POCA teams: ``raidjax.render``'s command with the MA-POCA loader.
 
-    python -m trainers.render --policy runs/mapoca_cpu_r9 --skill-range 9 --out team.gif
+    python -m trainers.render_cli --policy runs/mapoca_cpu_r9 --skill-range 9 --out team.gif
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ def find_run(path: str) -> str | None:
 
 def main(argv=None) -> None:
     """``python -m raidjax.render``'s flags; ``--policy`` may also name a MA-POCA run folder."""
-    render.main(argv, load_policy=load_policy, find_run=find_run, prog="python -m trainers.render")
+    render.main(argv, load_policy=load_policy, find_run=find_run, prog="python -m trainers.render_cli")
 
 
 def cli(argv=None) -> None:

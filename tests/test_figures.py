@@ -8,7 +8,7 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from experiments import b1_compare, calibration_figure  # noqa: E402
+from experiments import b1_compare, calibration_figure, speed_figure  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -41,3 +41,15 @@ def test_b1_compare_table_and_curves(tmp_path, capsys):
     assert "| ours | 0.900 ± 0.010 |" in text and "| theirs | 0.400 ± 0.010 |" in text and out.stat().st_size > 1000
     with pytest.raises(SystemExit):
         b1_compare.main([str(a), "--labels", "x", "y", "--out", str(out)])
+
+
+def test_speed_figure_reads_the_stored_vs_smax_runs_and_skips_other_lines(tmp_path):
+    stored = sorted((ROOT / "docs" / "results" / "speed").glob("*.json*"))
+    runs = speed_figure.summaries([str(p) for p in stored])
+    assert runs and all(r["benchmark"] == "vs_smax" for r in runs)
+    assert any(r["machine"]["platform"] == "gpu" for r in runs)  # gpu_h200.jsonl: rows and summaries mixed
+    out = tmp_path / "speed.png"
+    speed_figure.main([*map(str, stored), "--out", str(out)])
+    assert out.stat().st_size > 1000
+    with pytest.raises(SystemExit):  # a file without a vs_smax summary
+        speed_figure.main([str(ROOT / "docs" / "results" / "speed" / "step_cost.json"), "--out", str(out)])

@@ -228,6 +228,23 @@ def generation_kwargs(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: i
                 strict_length=pr.strict_length, max_edits=pr.max_edits(max_edits))
 
 
+# Wall-clock of a whole run per scale, as measured (docs/RESULTS.md); printed before a run starts.
+MEASURED_WALL = {"smoke": "a few minutes", "cpu": "not yet measured"}
+
+
+def planned_games(scale: Scale, pr: pm.Protocol) -> tuple[int, int]:
+    """``(training games, generation games)`` a run plays at most: every training step measured with
+    ``n_games`` games; every generation episode of 3 methods x 7 targets playing its start
+    measurement and each measured edit (``pr.max_edits``) with its per-measurement games, plus the
+    re-measurement of its kept skill (``raidjax`` protocol). Early stops (``raidjax``) play fewer."""
+    cfg = ppo_config(scale)
+    groups = len(target_groups(cfg, scale.seeds)[1])
+    train = cfg.num_updates * cfg.n_arenas * cfg.n_steps * groups * cfg.n_games
+    kw = generation_kwargs(scale, pr, cfg.max_edits, scale.episodes)
+    per_episode = (1 + kw["max_edits"]) * kw["gen_games"] + kw["eval_games"]
+    return train, len(METHODS) * len(pm.TARGETS) * scale.episodes * per_episode
+
+
 def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "paper") -> dict:
     """Generate with PPO (weights from the final checkpoint), PCG-HR and PCG-RD, in saved parts,
     under ``protocol`` (``pm.PROTOCOLS`` key). Returns ``episodes`` per method, ``parts`` and ``seconds``."""
@@ -281,6 +298,10 @@ def main(argv=None) -> dict:
     run = RunFolder(a.out, config, resume=a.resume)
     if run.finished:
         return run.already_finished()
+    train_games, gen_games = planned_games(scale, pr)
+    run.log(f"plan: scale {a.scale}, at most {train_games:,} PT-HR games in training and {gen_games:,} in "
+            f"generation; a whole {a.scale} run took {MEASURED_WALL.get(a.scale, 'not yet measured')} "
+            "on a 2-core CPU (docs/RESULTS.md); the training and generation lines give the ETA as they go")
     tr = run.stage("train", lambda: stage_train(run, scale, a.seed))
     ge = run.stage("generate", lambda: stage_generate(run, scale, a.seed, a.protocol))
     rep = run.stage("report", lambda: b2_report.report(run, load_generated(run.out / "generated.npz"),

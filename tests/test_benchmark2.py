@@ -199,3 +199,13 @@ def test_error_vs_diversity_figure_points_legend_and_gaps():
     assert "; 1 (method, target) group lacking a number not shown" in fig.axes[0].get_title()
     assert len(fig.axes[0].get_legend().get_texts()) == 6  # 2 methods x (per target, mean, paper)
     plt.close(fig)
+
+
+def test_the_plan_counts_the_games_a_run_plays():
+    # smoke: 2 updates x 4 arenas x 4 steps x 8 games; paper protocol at 4 decisions: a start
+    # measurement and 3 measured edits of 16 games, for 3 methods x 7 targets x 2 episodes.
+    s = b2.SCALES["smoke"]
+    assert b2.planned_games(s, b2.protocol_of(s, "paper")) == (2 * 4 * 4 * 8, 3 * 7 * 2 * 4 * 16)
+    # cpu: 40 updates x 32 x 8 steps x 50 games; 40 measurements of 300 games per episode, 6 episodes.
+    c = b2.SCALES["cpu"]
+    assert b2.planned_games(c, b2.protocol_of(c, "paper")) == (40 * 256 * 50, 3 * 7 * 6 * 40 * 300)

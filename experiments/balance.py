@@ -42,8 +42,9 @@ from raidjax import pcg
 from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli
 from trainers import checkpoint, loop
 from trainers.config import PRESETS, Config, PPOConfig
+from trainers.curriculum import range_table
 from trainers.generate import generate_episodes, target_groups
-from trainers.mapoca import load_policy, make_trainer, range_table
+from trainers.mapoca import load_policy, make_trainer
 from trainers.runfolder import RunFolder, add_run_arguments
 from trainers.runs import mapoca_learner, run_mapoca, run_ppo_pcgrl
 

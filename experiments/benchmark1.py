@@ -3,7 +3,7 @@
     python -m experiments.benchmark1 --scale {smoke,cpu,paper} --out DIR [--protocol {paper,raidjax}]
 
 Every MA-POCA run of the benchmark trains in **one** vmapped, jitted program: each run is a row
-with its own seed, content and set of skill ranges (``trainers.mapoca.range_table``), so the
+with its own seed, content and set of skill ranges (``trainers.curriculum.range_table``), so the
 whole benchmark compiles once. The runs (``R`` = seeds, ``Q`` = population size):
 
 - ``table/r{5,9,13,17}`` x R: the win-rate table's MA-POCA, reference content at one range;
@@ -16,7 +16,7 @@ Protocols (``PROTOCOLS``; GAME.md §11):
   reference content (players' cool time 0.5: ``RL_GENERALIZATION/JSON/train/*.json``,
   ``population/*.json``) and are tested on the test content (cool time 1.0:
   ``test/skill_{easy,hard}.json``); an arena redraws its range every second episode
-  (``trainers.mapoca.next_ranges``, one draw per arena shared by its players).
+  (``trainers.curriculum.next_ranges``, one draw per arena shared by its players).
 - ``raidjax``: train on the test content too (seen and unseen content differ only in the skill
   range) and redraw the range at every episode.
 
@@ -42,7 +42,8 @@ from raidjax.io import HelpFormatter, atomic_write, run_cli, whole_number_arg
 from raidjax.playtest import auto_games_per_arena
 from trainers import checkpoint, loop
 from trainers.config import PRESETS, Config
-from trainers.mapoca import RANGE_TABLE, make_trainer, range_table
+from trainers.curriculum import RANGE_TABLE, range_table
+from trainers.mapoca import make_trainer
 from trainers.networks import sample_actions
 from trainers.runfolder import RunFolder, add_run_arguments
 from trainers.runs import mapoca_learner

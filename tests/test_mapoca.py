@@ -338,7 +338,7 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
 
 
 def test_range_table_tiles_sets_uniformly():
-    from trainers.mapoca import RANGE_TABLE, range_table
+    from trainers.curriculum import RANGE_TABLE, range_table
 
     for ranges in [(5.0,), (5.0, 9.0), (5.0, 9.0, 13.0), (5.0, 9.0, 13.0, 17.0)]:
         t = np.asarray(range_table(ranges))

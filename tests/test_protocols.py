@@ -18,8 +18,8 @@ from experiments import benchmark2 as b2
 from raidjax import pcg
 from raidjax.pcg import metrics as pm
 from trainers.config import PRESETS, from_agent_steps
+from trainers.curriculum import next_ranges
 from trainers.generate import method_policy
-from trainers.mapoca import next_ranges
 
 # --- MA-POCA paper preset (item 6) ---------------------------------------------------------
 

@@ -28,7 +28,6 @@ acted (was alive at t), normalised over those entries of the whole update.
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -39,12 +38,11 @@ from flax import struct
 
 import raidjax
 from raidjax import pcg
-from raidjax.content import with_player_skill
 from raidjax.env import team_reward
-from raidjax.reference_observation import start_memory
 from raidjax.types import WIN, Observation, Params, State
 from trainers import checkpoint
 from trainers.config import Config
+from trainers.curriculum import draw_skills, next_draws, range_table, redraw, with_drawn
 from trainers.networks import Actor, Critic, sample_actions
 
 
@@ -191,76 +189,6 @@ class Trainer(NamedTuple):
 
 
 EPISODE_KEYS = ("episodes", "return_sum", "wins", "draws", "length_sum")
-RANGE_TABLE = 12  # lcm(1, 2, 3, 4): sets of 1-4 ranges share one table shape, so draws stay uniform
-
-
-def range_table(ranges, size: int | None = None) -> jax.Array:
-    """The set of skill ranges a run draws from, tiled to ``float32[size]``.
-
-    A uniform draw over the table is a uniform draw over the set. Runs whose tables share a size
-    are one vmapped program (``experiments.benchmark1``: sets of 1-4 ranges, size 12).
-
-    Args:
-        ranges: the set (k values).
-        size: table length, a multiple of k (default ``lcm(k, RANGE_TABLE)``).
-
-    Raises:
-        ValueError: an empty set, or ``size`` not a multiple of k.
-    """
-    ranges = tuple(float(r) for r in ranges)
-    size = math.lcm(len(ranges), RANGE_TABLE) if size is None and ranges else size
-    if not ranges or size % len(ranges):
-        raise ValueError(f"skill_ranges: {len(ranges)} values cannot tile a table of {size} entries "
-                         "(allowed: 1 or more values, a divisor of the table size)")
-    return jnp.asarray(ranges * (size // len(ranges)), jnp.float32)
-
-
-def next_ranges(key: jax.Array, ranges: jax.Array, episode: jax.Array, done: jax.Array, range_set: jax.Array,
-                every: int) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """The reference's per-arena range redraw (``MMORPGEnvController.ResetScene``:
-    ``if (n_episode++ % 2 == 0) RequestMAConfig``), for ``every = 2``.
-
-    An arena that ends an episode counts it; when its count of finished episodes is a multiple of
-    ``every`` it draws a new range from ``range_set`` (one draw per arena, shared by its players).
-    The start of the run is a draw (``init``), so an arena's episodes 1..every share a range.
-
-    Args:
-        key: PRNG key; ranges: ``float32[N]``; episode: ``int32[N]`` finished episodes before this
-        step; done: ``bool[N]`` an episode ended this step; range_set: ``float32[K]``; every: static.
-
-    Returns:
-        ``(ranges float32[N], episode int32[N], redrawn bool[N])``.
-    """
-    episode, redrawn = next_draws(episode, done, every)
-    fresh = jax.random.choice(key, range_set, ranges.shape)
-    return jnp.where(redrawn, fresh, ranges), episode, redrawn
-
-
-def next_draws(episode: jax.Array, done: jax.Array, every: int) -> tuple[jax.Array, jax.Array]:
-    """The redraw cadence of ``next_ranges`` for any drawn content: ``(episode int32[N], redrawn
-    bool[N])`` from finished-episode counts ``int32[N]`` and ``done`` ``bool[N]``."""
-    episode = episode + done.astype(jnp.int32)
-    return episode, done & (episode % every == 0)
-
-
-def with_drawn(config: Config, content: Params, skill: jax.Array) -> Params:
-    """``content`` with one arena's drawn values ``float32[K]`` (``draw_skills``) written in: the
-    players' skill slot 1 range (``K = 1``), or under ``config.content_box`` the generator's
-    parameters (``config.parameters``, ``raidjax.pcg.make_space``)."""
-    if config.content_box:
-        return pcg.make_space(config.parameters, config.players).apply(content, skill)
-    return with_player_skill(content, range=skill[0])
-
-
-def draw_skills(key: jax.Array, config: Config, range_set: jax.Array, n: int) -> jax.Array:
-    """``n`` fresh draws ``float32[n, K]`` (``with_drawn``): a range from ``range_set``, or under
-    ``config.content_box`` a point uniform in the generator's box."""
-    if config.content_box:
-        space = pcg.make_space(config.parameters, config.players)
-        return jax.random.uniform(key, (n, space.size), minval=space.low, maxval=space.high)
-    return jax.random.choice(key, range_set, (n,))[:, None]
-
-
 def make_trainer(config: Config, base_params: Params | None = None, redraw_ranges: bool | None = None,
                  fixed_content: bool = False) -> Trainer:
     """Build the pure training functions for ``config``.
@@ -328,15 +256,9 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         next_value = critic.apply(p["critic"], info["final_observation"], method=Critic.value)
         episode, redrawn = next_draws(runner.episode, done, cfg.redraw_every)
         skills = runner.skills
-        if multi_range:  # arenas that drew a new skill re-observe their new episode under it
-            skills = jnp.where(redrawn[:, None], draw_skills(k_rng, cfg, runner.range_set, n), skills)
-            drawn = env_params_of(runner.content, skills)
-            if cfg.senses == "reference":  # the stacked vector shows the skill: restart it under the new one
-                restarted = jax.vmap(start_memory)(state, drawn)
-                state = jax.tree.map(lambda a, b: jnp.where(redrawn.reshape((n,) + (1,) * (a.ndim - 1)), a, b),
-                                     restarted, state)
-            fresh = jax.vmap(raidjax.observe)(state, drawn)
-            nxt = jax.tree.map(lambda a, b: jnp.where(redrawn.reshape((n,) + (1,) * (a.ndim - 1)), a, b), fresh, nxt)
+        if multi_range:
+            skills, state, nxt = redraw(k_rng, cfg, redrawn, skills, runner.range_set, state, nxt,
+                                        lambda sk: env_params_of(runner.content, sk))
         reward = team_reward(info, done)
         ep_ret, ep_len = runner.ep_return + reward, runner.ep_length + 1
         won = done & (info["result"] == WIN)

@@ -159,6 +159,49 @@ def _yield_md(rows: list[dict]) -> str:
               "(the paper reports no yield numbers).")
 
 
+def bootstrap(gens: dict, protocol: pm.Protocol | None = None, n_boot: int = 1000, seed: int = 0) -> dict:
+    """95 % percentile bootstrap intervals of each method's headline numbers: episodes resampled
+    with replacement within each (method, target) group, ``pm.summarize`` recomputed on every
+    resample (the pooled normalisation and PCA included).
+
+    Returns:
+        ``{method: {"mean_error" | "pc1_sd" | "yield": (low, high)}}`` (NaN where a resample has
+        no number).
+    """
+    rng = np.random.default_rng(seed)
+    keys = {"mean_error": lambda s: s["controllability"]["err_mean"], "pc1_sd": lambda s: s["pc1_sd_mean"],
+            "yield": lambda s: s["yield"]}
+    draws = {m: {k: [] for k in keys} for m in gens}
+    groups = {m: [np.flatnonzero(np.round(g["target"], 6) == t) for t in np.unique(np.round(g["target"], 6))]
+              for m, g in gens.items()}
+    for _ in range(n_boot):
+        sample = {}
+        for m, g in gens.items():
+            idx = np.concatenate([rng.choice(ix, ix.size) for ix in groups[m]])
+            sample[m] = {k: np.asarray(v)[idx] for k, v in g.items()}
+        for m, s in pm.summarize(sample, protocol).items():
+            for k, get in keys.items():
+                draws[m][k].append(get(s))
+    ci = lambda x: tuple(float(v) for v in np.nanpercentile(x, [2.5, 97.5])) if np.isfinite(x).any() else (
+        float("nan"), float("nan"))
+    return {m: {k: ci(np.asarray(v, float)) for k, v in d.items()} for m, d in draws.items()}
+
+
+def _summary_md(summ: dict, ci: dict, n_boot: int) -> str:
+    paper = paper_summary()
+    f = lambda x: "–" if x is None or not np.isfinite(x) else f"{x:.3f}"
+    body = [[m, f(s["controllability"]["err_mean"]) + f" [{f(ci[m]['mean_error'][0])}, {f(ci[m]['mean_error'][1])}]",
+             f(paper["mean_error"].get(m)),
+             f(s["pc1_sd_mean"]) + f" [{f(ci[m]['pc1_sd'][0])}, {f(ci[m]['pc1_sd'][1])}]", f(paper["pc1_sd"].get(m)),
+             f(s["yield"]) + f" [{f(ci[m]['yield'][0])}, {f(ci[m]['yield'][1])}]"]
+            for m, s in summ.items()]
+    return ("## Headline numbers with 95 % bootstrap intervals\n\n"
+            + markdown_table(["method", "mean error [95 % CI]", "paper", "PC1 SD [95 % CI]", "paper",
+                              "yield [95 % CI]"], body)
+            + f"\n\n{n_boot} resamples of the episodes within each (method, target) group, every number "
+              "recomputed on each (experiments.b2_report.bootstrap).")
+
+
 def tsne_figure(gens: dict, seed: int = 0, per_target: int = 300):
     """t-SNE (scikit-learn) of the generated skills (4 parameters min-max scaled by their bounds),
     one joint embedding, one panel per method coloured by target. At most ``per_target`` skills
@@ -274,7 +317,7 @@ def error_vs_diversity_figure(crow: list[dict], drow: list[dict]):
 
 
 def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300,
-           protocol: pm.Protocol | None = None) -> dict:
+           protocol: pm.Protocol | None = None, n_boot: int = 1000) -> dict:
     """Write the tables, CSVs and figures of Benchmark 2 into ``run``.
 
     Args:
@@ -283,6 +326,7 @@ def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300
         seed: t-SNE / subsampling seed.
         tsne_per_target: at most this many skills per (method, target) in the t-SNE.
         protocol: which episodes count and how groups are cut (``summarize``; default raidjax's).
+        n_boot: bootstrap resamples behind the intervals (``bootstrap``).
 
     Returns:
         JSON-able ``mean_error``, ``pc1_sd``, ``yield``, ``edits`` and ``n_controllability`` per
@@ -297,6 +341,8 @@ def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300
     run.write_table("controllability", _control_md(crow))
     run.write_table("diversity", _diversity_md(drow))
     run.write_table("yield", _yield_md(yrow))
+    ci = bootstrap(gens, protocol, n_boot, seed)
+    run.write_table("summary", _summary_md(summ, ci, n_boot))
     run.save_figure("controllability", controllability_figure(crow), dpi=85)
     run.save_figure("error_vs_diversity", error_vs_diversity_figure(crow, drow), dpi=90)
     fig, n = tsne_figure(gens, seed, tsne_per_target)
@@ -310,4 +356,5 @@ def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300
             "yield": {m: s["yield"] for m, s in summ.items()},
             "edits": {m: s["edits_mean"] for m, s in summ.items()},
             "n_controllability": {m: s["controllability"]["n"] for m, s in summ.items()},
+            "ci95": {m: {k: [fin(v) for v in lohi] for k, lohi in c.items()} for m, c in ci.items()},
             "seconds": time.perf_counter() - t0}

@@ -67,6 +67,7 @@ class Scale:
             of the ``paper`` protocol, the re-measurement of the ``raidjax`` protocol.
         decisions: overrides the ``paper`` protocol's 40 decisions per episode (``None``: 40).
         tsne_per_target: at most this many skills per (method, target) in the t-SNE figure.
+        bootstrap: resamples behind the report's 95 % intervals (``b2_report.bootstrap``).
         fast_compile: compile the PPO learner with XLA backend optimisation level 0 (compiles
             ~3x faster, runs slower: for the smoke test; generation keeps the defaults, where
             level 0 ran ~8x slower and saved nothing).
@@ -83,6 +84,7 @@ class Scale:
     decisions: int | None = None
     tsne_per_target: int = 300
     fast_compile: bool = False
+    bootstrap: int = 1000
 
     @property
     def compiler_options(self) -> dict | None:
@@ -96,7 +98,7 @@ SCALES = {
     "smoke": Scale(preset="cpu", ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2,
                                           hidden=16, layers=2, n_games=8, max_edits=6),
                    seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=16, decisions=4,
-                   fast_compile=True),
+                   fast_compile=True, bootstrap=50),
     # Sized to finish within 3 hours on a 2-core CPU (the paper protocol: 40-decision episodes,
     # 300-game measurements, greedy PPO): the cpu preset (one model for all targets, target observed;
     # N = 50 games per training measurement) trained for 10 240 generator steps (paper: 20 000 per
@@ -306,9 +308,10 @@ def main(argv=None) -> dict:
     ge = run.stage("generate", lambda: stage_generate(run, scale, a.seed, a.protocol))
     rep = run.stage("report", lambda: b2_report.report(run, load_generated(run.out / "generated.npz"),
                                                           seed=a.seed, tsne_per_target=scale.tsne_per_target,
-                                                          protocol=pr))
+                                                          protocol=pr, n_boot=scale.bootstrap))
     summary = {"benchmark": 2, "scale": a.scale, "seed": a.seed, "protocol": a.protocol,
-               **{k: rep.get(k) for k in ("mean_error", "pc1_sd", "pc1_own_sd", "yield", "edits", "n_controllability")},
+               **{k: rep.get(k) for k in ("mean_error", "pc1_sd", "pc1_own_sd", "yield", "edits", "n_controllability",
+                                          "ci95")},
                "paper": b2_report.paper_summary(),
                "train_steps": tr["steps"], "train_groups": tr["groups"], "episodes": ge["episodes"],
                "train_seconds": tr["seconds"], "generate_seconds": ge["seconds"]}

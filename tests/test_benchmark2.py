@@ -39,11 +39,13 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
     assert json.loads(last)["mean_error"] == summary["mean_error"]
 
     for f in ["config.json", "log.txt", "summary.json", "generated.npz", "tables/controllability.md",
-              "tables/diversity.md", "tables/yield.md", "csv/controllability.csv", "csv/diversity.csv",
-              "csv/yield.csv", "csv/generated.csv", "train/metrics.csv", "stages/train.json",
+              "tables/diversity.md", "tables/yield.md", "tables/summary.md", "csv/controllability.csv",
+              "csv/diversity.csv", "csv/yield.csv", "csv/generated.csv", "train/metrics.csv", "stages/train.json",
               "stages/generate.json", "stages/report.json"]:
         assert (out / f).is_file(), f
     assert json.loads((out / "config.json").read_text())["scale"] == "smoke"
+    assert set(summary["ci95"]) == set(b2.METHODS) and all(len(v) == 2 for c in summary["ci95"].values()
+                                                            for v in c.values())
     for fig in ["tsne", "controllability", "error_vs_diversity"]:
         with Image.open(out / "figures" / f"{fig}.png") as im:
             im.load()
@@ -209,3 +211,25 @@ def test_the_plan_counts_the_games_a_run_plays():
     # cpu: 40 updates x 32 x 8 steps x 50 games; 40 measurements of 300 games per episode, 6 episodes.
     c = b2.SCALES["cpu"]
     assert b2.planned_games(c, b2.protocol_of(c, "paper")) == (40 * 256 * 50, 3 * 7 * 6 * 40 * 300)
+
+
+def test_bootstrap_intervals_bracket_the_estimate_and_collapse_on_identical_episodes():
+    from experiments import b2_report
+
+    rng = np.random.default_rng(0)
+    t = np.repeat(np.asarray(pm.TARGETS, np.float32), 4)
+
+    def gen(noise: float) -> dict:
+        skill = rng.uniform(0, 1, (len(pm.TARGETS), 4)).astype(np.float32).repeat(4, 0)
+        return {"target": t, "skill": skill, "win_rate": np.clip(t + noise, 0, 1).astype(np.float32),
+                "gen_win_rate": t, "edits": np.full(len(t), 39), "reached": np.ones(len(t), bool)}
+
+    # Every episode of a (method, target) group alike: every resample is the data itself.
+    same = {"PPO": gen(0.05), "PCG-HR": gen(0.1)}
+    ci = b2_report.bootstrap(same, pm.PROTOCOLS["paper"], n_boot=20)
+    est = pm.summarize(same, pm.PROTOCOLS["paper"])
+    for m in same:
+        assert ci[m]["mean_error"] == pytest.approx((est[m]["controllability"]["err_mean"],) * 2)
+    noisy = {"PPO": {**gen(0.0), "win_rate": np.clip(t + rng.normal(0, 0.1, len(t)), 0, 1).astype(np.float32)}}
+    lo, hi = b2_report.bootstrap(noisy, pm.PROTOCOLS["paper"], n_boot=200)["PPO"]["mean_error"]
+    assert lo < pm.summarize(noisy, pm.PROTOCOLS["paper"])["PPO"]["controllability"]["err_mean"] < hi

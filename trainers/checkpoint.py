@@ -148,11 +148,30 @@ def _short(e: Exception) -> str:
     return f"{type(e).__name__}: {line[:160]}{'...' if len(line) > 160 else ''}"
 
 
+def _placed(abstract):
+    """``abstract`` (shapes and dtypes) placed on this process's first device: a checkpoint saved on
+    another backend (trained on a CPU, read on a GPU) restores here instead of failing orbax's
+    topology check on the sharding it was saved with."""
+    device = jax.sharding.SingleDeviceSharding(jax.devices()[0])
+    return jax.tree.map(lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=device), abstract)
+
+
+def _as_saved(where: Path, name: str) -> ocp.args.StandardRestore:
+    """Restore arguments for item ``name`` of the step ``where`` in the shapes and dtypes it was
+    saved with (its metadata), placed on this device (``_placed``)."""
+    md = ocp.StandardCheckpointer().metadata((where / name).absolute())
+    tree = getattr(md, "item_metadata", md)
+    return ocp.args.StandardRestore(_placed(getattr(tree, "tree", tree)))
+
+
 def _restore_one(directory: Path, step: int, **items):
-    """Restore ``items`` of one step and check them against the saved digests."""
+    """Restore ``items`` of one step and check them against the saved digests (a
+    ``StandardRestore()`` without a target restores the item as it was saved, on this device)."""
     where = directory / str(step)
     _check_files(where)
     try:
+        items = {k: _as_saved(where, k) if isinstance(v, ocp.args.StandardRestore) and v.item is None else v
+                 for k, v in items.items()}
         with _manager(directory, max_to_keep=None, create=False) as mngr:
             out = mngr.restore(step, args=ocp.args.Composite(meta=ocp.args.JsonRestore(), **items))
     except Exception as e:  # noqa: BLE001 - any orbax/tensorstore failure means a bad checkpoint
@@ -208,7 +227,7 @@ def restore(path: str | Path, abstract_state, quarantine: bool = False) -> tuple
     Raises:
         CheckpointError: no checkpoint, or none that loads and matches its digests.
     """
-    out, _ = _restore(path, quarantine, state=ocp.args.StandardRestore(abstract_state),
+    out, _ = _restore(path, quarantine, state=ocp.args.StandardRestore(_placed(abstract_state)),
                       config=ocp.args.JsonRestore())
     return out.state, dict(out.config), dict(out.meta)
 

@@ -99,13 +99,13 @@ SCALES = {
                                           hidden=16, layers=2, n_games=8, max_edits=6),
                    seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=16, decisions=4,
                    fast_compile=True, bootstrap=50),
-    # Sized to finish within 3 hours on a 2-core CPU (the paper protocol: 40-decision episodes,
+    # Sized for a 2-core CPU (the paper protocol: 40-decision episodes,
     # 300-game measurements, greedy PPO): the cpu preset (one model for all targets, target observed;
     # N = 50 games per training measurement) trained for 10 240 generator steps (paper: 20 000 per
     # model, one model per target and seed), 6 episodes per target and method (paper: 5 000 skills per
-    # target, 300 kept). About 2 M PT-HR games; at 20 480 steps and 12 episodes it was over 4 hours
-    # (training measured at ~113 games/s on this CPU: 32 episodes x 50 games are too few arenas to
-    # fill its vectors).
+    # target, 300 kept). About 2 M PT-HR games: 4 h on that CPU (2026-11-26, RESULTS), over the 3 h
+    # it was sized for (training measured at ~113 games/s: 32 episodes x 50 games are too few
+    # arenas to fill its vectors; a generation part, 252 000 games, 27 min).
     "cpu": Scale(preset="cpu", ppo=dict(total_steps=10240), seeds=1, chunk=5, episodes=6, parts=6,
                  gen_games=100, eval_games=300),
     # The paper's budgets: one model per fixed (unobserved) target, 5 seeds, 20 000 steps, N = 100
@@ -125,7 +125,7 @@ def _parse(argv=None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="python -m experiments.benchmark2",
                                  description="Benchmark 2 (content generation) of the RaidEnv paper",
                                  formatter_class=HelpFormatter)
-    add_run_arguments(ap, SCALES, "budgets: smoke (minutes), cpu (under 3 hours on 2 cores), paper")
+    add_run_arguments(ap, SCALES, "budgets: smoke (minutes), cpu (about 4 hours on 2 cores), paper")
     ap.add_argument("--protocol", choices=sorted(pm.PROTOCOLS), default="paper",
                     help="paper: strict 40-decision episodes measured with eval_games games at every edit, greedy "
                     "PPO, last measured skill, groups cut to 300; raidjax: early stop at the band, sampled PPO, "
@@ -231,7 +231,8 @@ def generation_kwargs(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: i
 
 
 # Wall-clock of a whole run per scale, as measured (docs/RESULTS.md); printed before a run starts.
-MEASURED_WALL = {"smoke": "a few minutes", "cpu": "not yet measured"}
+MEASURED_WALL = {"smoke": "a few minutes",
+                 "cpu": "about 4 h (2026-11-26: training 1 h 24 min, 27 min per generation part)"}
 
 
 def planned_games(scale: Scale, pr: pm.Protocol) -> tuple[int, int]:

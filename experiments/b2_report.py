@@ -145,7 +145,7 @@ def _diversity_md(rows: list[dict]) -> str:
             + markdown_table(["target", "method", "n kept", "range", "cool time", "cast time", "coefficient",
                               "PC1", "PC1 own axis"], body)
             + "\n\nSkills with |W_t − W_c| < 0.1; normalisation and PCA over the pooled kept skills of all "
-              "methods (GAME.md §11); `PC1 own axis`: SD along the (method, target) group's own first axis, "
+              "methods (PROTOCOLS.md §11); `PC1 own axis`: SD along the (method, target) group's own first axis, "
               "a check that a lead does not come from the pooled axis; `–` where fewer than 2 skills were "
               "kept. `mean` rows: mean over targets.")
 

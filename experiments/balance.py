@@ -1,4 +1,4 @@
-"""Automated content balancing end to end (GAME.md §13): a skill generator whose playtests are
+"""Automated content balancing end to end (PROTOCOLS.md §13): a skill generator whose playtests are
 played by a robust learned team, compared with one trained against the paper's scripted PT-HR.
 
     python -m experiments.balance --scale {smoke,cpu,paper} --out DIR [--seed N] [--resume]
@@ -256,7 +256,7 @@ def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(prog="python -m experiments.balance", formatter_class=HelpFormatter,
                                  description="The integrated balancing loop: a learned playtester inside the "
-                                 "skill generator, against the scripted PT-HR (GAME.md §13).")
+                                 "skill generator, against the scripted PT-HR (PROTOCOLS.md §13).")
     add_run_arguments(ap, SCALES, "budgets (smoke: a few minutes, for the plumbing; cpu: about 40 min on 2 cores; "
                       "paper: the paper's budgets, for an accelerator)")
     ap.add_argument("--players", nargs="+", default=["mage"] * 3,

@@ -7,7 +7,7 @@ Reads ``DIR/generated.npz`` (one row per generated skill: ``generator`` index in
 testers reached on it) and writes ``tables/skill_gap.md``, ``tables/balance.md``,
 ``csv/skill_gap.csv``, ``figures/skill_gap.png`` and ``figures/controllability.png``.
 
-Definitions (GAME.md §13). A skill's *gap* is ``learned - scripted``: how much more the
+Definitions (PROTOCOLS.md §13). A skill's *gap* is ``learned - scripted``: how much more the
 learned team wins with it than PT-HR. A generator's *error under a tester* is ``|w - target|``
 with that tester's win rate ``w``; diversity is Benchmark 2's PC1 SD over the skills within 0.1 of
 their target under that tester (``raidjax.pcg.metrics.diversity``).

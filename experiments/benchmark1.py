@@ -1,4 +1,4 @@
-"""Benchmark 1 of the RaidEnv paper (GAME.md §11): playtesting agents, end to end.
+"""Benchmark 1 of the RaidEnv paper (PROTOCOLS.md §11): playtesting agents, end to end.
 
     python -m experiments.benchmark1 --scale {smoke,cpu,paper} --out DIR [--protocol {paper,raidjax}]
 
@@ -10,7 +10,7 @@ whole benchmark compiles once. The runs (``R`` = seeds, ``Q`` = population size)
 - ``robust/MA-POCA{1..4}`` x R: ranges drawn (see the protocols) from {5}, {5,9}, {5,9,13}, {5,9,13,17};
 - ``population/r{3,4,19,20}`` x Q: trained directly on each unseen test range.
 
-Protocols (``PROTOCOLS``; GAME.md §11):
+Protocols (``PROTOCOLS``; PROTOCOLS.md §11):
 
 - ``paper`` (default), the reference configs: MA-POCA1..4 and the populations train on the
   reference content (players' cool time 0.5: ``RL_GENERALIZATION/JSON/train/*.json``,

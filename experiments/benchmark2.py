@@ -1,4 +1,4 @@
-"""Benchmark 2 of the RaidEnv paper (GAME.md §10–§11): controllable skill generation, as one
+"""Benchmark 2 of the RaidEnv paper (GAME.md §10, PROTOCOLS.md §11): controllable skill generation, as one
 resumable command::
 
     python -m experiments.benchmark2 --scale {smoke,cpu,paper} --out DIR [--seed N] [--protocol {paper,raidjax}]
@@ -63,7 +63,7 @@ class Scale:
         episodes: generation episodes per target and method (PPO: split evenly over seeds).
         parts: generation is done in this many saved parts (``episodes`` divisible by it).
         gen_games: PT-HR games per generator measurement (``raidjax`` protocol).
-        eval_games: PT-HR games behind each kept win rate (300 in GAME.md §11): every measurement
+        eval_games: PT-HR games behind each kept win rate (300 in PROTOCOLS.md §11): every measurement
             of the ``paper`` protocol, the re-measurement of the ``raidjax`` protocol.
         decisions: overrides the ``paper`` protocol's 40 decisions per episode (``None``: 40).
         tsne_per_target: at most this many skills per (method, target) in the t-SNE figure.

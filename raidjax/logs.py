@@ -120,7 +120,7 @@ def grid_cell(pos: jax.Array, bins: int = HEATMAP_BINS) -> jax.Array:
 
 
 def occupancy_heatmap(pos: jax.Array, mask: jax.Array, bins: int = HEATMAP_BINS) -> jax.Array:
-    """Average position occupancy on a ``bins x bins`` grid over the arena (GAME.md §11).
+    """Average position occupancy on a ``bins x bins`` grid over the arena (PROTOCOLS.md §11).
 
     Args:
         pos: ``float32[..., 2]`` positions (any leading axes: games, time, players).

@@ -266,7 +266,7 @@ def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: 
     """Per-player position occupancy over the games ``playtest`` would play with the same key.
 
     Counts, at every decision (the start state included) of every measured game still running,
-    the cell of each alive player on a ``bins x bins`` grid over the arena (GAME.md §11), without
+    the cell of each alive player on a ``bins x bins`` grid over the arena (PROTOCOLS.md §11), without
     storing traces, so 500 games x 2000 decisions cost no memory.
 
     Args:

@@ -1,4 +1,4 @@
-"""Content balancing end to end (GAME.md §13): user-chosen parameter spaces, the generator on a
+"""Content balancing end to end (PROTOCOLS.md §13): user-chosen parameter spaces, the generator on a
 mixed team, the MA-POCA tester over a content box, and ``experiments.balance`` at the smoke scale
 with its skill-gap table recomputed from the raw outputs."""
 

@@ -1,4 +1,4 @@
-"""Tests of the content-generation environment, baselines, metrics and PPO-PCGRL (GAME.md §10–11)."""
+"""Tests of the content-generation environment, baselines, metrics and PPO-PCGRL (GAME.md §10, PROTOCOLS.md §11)."""
 
 from __future__ import annotations
 

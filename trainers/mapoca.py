@@ -1,4 +1,4 @@
-"""MA-POCA (Cohen et al. 2021; GAME.md §12) as one pure, jittable JAX program, PureJaxRL style.
+"""MA-POCA (Cohen et al. 2021; PROTOCOLS.md §12) as one pure, jittable JAX program, PureJaxRL style.
 
 ``make_train(config)(key)`` runs a whole training run on device: ``n_arenas`` auto-resetting
 raidjax arenas roll out ``n_steps`` decisions inside ``lax.scan``, λ-returns and counterfactual
@@ -6,7 +6,7 @@ advantages are computed, and ``update_epochs x n_minibatches`` Adam steps follow
 one scan over updates. ``make_trainer`` exposes the pieces (``init``, ``update``, ``chunk``) that
 the CLI (``trainers.mapoca_cli``) drives chunk by chunk for progress, logs and checkpoints.
 
-Reward (GAME.md §8, §12). ``raidjax.step`` pays player ``i``: ``r_i = 0.01 d_i + 1.0 w`` (``d_i``
+Reward (GAME.md §8, PROTOCOLS.md §12). ``raidjax.step`` pays player ``i``: ``r_i = 0.01 d_i + 1.0 w`` (``d_i``
 the damage its hits did to the boss this step, ``w`` = the boss died this step). MA-POCA
 trains every agent on its own + its teammates' individual rewards + the group reward, i.e. on
 the one team reward ``r = 0.01 sum_i d_i + 1.0 w = sum_i r_i - (P - 1) w`` (the win bonus is a

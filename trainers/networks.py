@@ -1,4 +1,4 @@
-"""Flax networks of MA-POCA (GAME.md §12): a shared entity-attention actor and a centralised critic
+"""Flax networks of MA-POCA (PROTOCOLS.md §12): a shared entity-attention actor and a centralised critic
 that gives both the group value V(s) and the counterfactual baselines Q(s, a_-i).
 
 Shapes: ``P`` players, ``A`` actions (``config.n_actions``, the width of ``obs.action_mask``),

@@ -1,4 +1,4 @@
-"""Content generation on top of the game rules (GAME.md §10–11): the generator environment
+"""Content generation on top of the game rules (GAME.md §10, PROTOCOLS.md §11): the generator environment
 (``raidjax.pcg.env``), the paper's PCG-RD / PCG-HR baselines (``raidjax.pcg.baselines``), and
 generation runs with the controllability / diversity metrics (``raidjax.pcg.metrics``).
 

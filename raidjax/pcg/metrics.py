@@ -1,4 +1,4 @@
-"""Benchmark 2 (GAME.md §11): generation runs and the controllability / diversity / yield metrics,
+"""Benchmark 2 (PROTOCOLS.md §11): generation runs and the controllability / diversity / yield metrics,
 plus the playtest-noise measurement.
 
 ``generate`` runs any generator policy ``policy(policy_params, key, obs, state, params) ->
@@ -26,7 +26,7 @@ TARGETS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
 
 @dataclasses.dataclass(frozen=True)
 class Protocol:
-    """How Benchmark 2 generates, keeps and compares skills (GAME.md §11).
+    """How Benchmark 2 generates, keeps and compares skills (PROTOCOLS.md §11).
 
     Attributes:
         name: ``PROTOCOLS`` key.
@@ -154,7 +154,7 @@ def equal_groups(groups: np.ndarray, size: int, seed: int = 1, min_size: int = 1
 
 
 def controllability(gen: dict, min_edits: int = 2, group_size: int | None = None, seed: int = 1) -> dict:
-    """Controllability (GAME.md §11) over episodes with at least ``min_edits`` edits.
+    """Controllability (PROTOCOLS.md §11) over episodes with at least ``min_edits`` edits.
 
     Args:
         gen: ``generate`` output (``target``, ``win_rate``, ``edits`` [n]).
@@ -191,7 +191,7 @@ def first_pc(x: np.ndarray) -> np.ndarray:
 
 def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, threshold: float = 0.1,
               group_size: int | None = None, seed: int = 1) -> dict:
-    """Diversity (GAME.md §11): keep skills with error < ``threshold``, optionally cut every group to
+    """Diversity (PROTOCOLS.md §11): keep skills with error < ``threshold``, optionally cut every group to
     one size, min-max normalise the 4 parameters over the pooled (cut) set, fit PCA on it, then
     per group the SD of each parameter and of PC1.
 

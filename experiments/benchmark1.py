@@ -18,7 +18,9 @@ Protocols (``PROTOCOLS``; PROTOCOLS.md §11):
   ``test/skill_{easy,hard}.json``); an arena redraws its range every second episode
   (``trainers.curriculum.next_ranges``, one draw per arena shared by its players).
 - ``raidjax``: train on the test content too (seen and unseen content differ only in the skill
-  range) and redraw the range at every episode.
+  range) and redraw the range at every episode; raidjax's observation and 10 masked actions.
+- ``paper-raidjax-senses``: ``paper`` with raidjax's observation and actions (the observation
+  comparison: everything else as ``paper``).
 
 Stages (``trainers.runfolder``; rerunning the command with ``--resume`` resumes): ``train`` (orbax checkpoints
 every few chunks, progress lines with decisions/s and ETA), ``evaluate`` (every run's team and
@@ -69,7 +71,10 @@ class Protocol:
     senses: str
 
 
-PROTOCOLS = {"paper": Protocol("reference", 2, "reference"), "raidjax": Protocol("test", 1, "raidjax")}
+PROTOCOLS = {"paper": Protocol("reference", 2, "reference"), "raidjax": Protocol("test", 1, "raidjax"),
+             # The paper's protocol played with raidjax's senses: the one difference from "paper" is
+             # what the teams observe and how they act (the observation comparison of RESULTS).
+             "paper-raidjax-senses": Protocol("reference", 2, "raidjax")}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -305,7 +310,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--protocol", choices=sorted(PROTOCOLS), default="paper",
                     help="paper: the reference player's observation and 8 actions; MA-POCA1..4 and populations "
                     "train at cool time 0.5, range redrawn every second episode; raidjax: raidjax's observation "
-                    "and 10 masked actions, training at the test content (cool time 1.0), range redrawn every episode")
+                    "and 10 masked actions, training at the test content (cool time 1.0), range redrawn every episode; "
+                    "paper-raidjax-senses: the paper protocol with raidjax's observation and actions")
     ap.add_argument("--max-chunks", type=whole_number_arg(1),
                     help="stop training after this many chunks, to resume later (default: no limit)")
     args = ap.parse_args(argv)

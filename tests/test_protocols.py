@@ -81,7 +81,8 @@ def test_range_redrawn_every_second_episode_of_an_arena():
 # --- Benchmark 1: training content 0.5, test content 1.0 ------------------------------------
 
 
-@pytest.mark.parametrize("protocol, train_cool, every", [("paper", 0.5, 2), ("raidjax", 1.0, 1)])
+@pytest.mark.parametrize("protocol, train_cool, every", [("paper", 0.5, 2), ("raidjax", 1.0, 1),
+                                                         ("paper-raidjax-senses", 0.5, 2)])
 def test_benchmark1_trains_at_cool_time_and_tests_at_one(protocol, train_cool, every):
     scale = b1.SCALES["smoke"]
     runs = b1.runs_of(scale, protocol)
@@ -219,3 +220,10 @@ def test_strict_episodes_keep_the_last_measurement():
                         eval_games=0)
     assert (loose["edits"] < 3).any() and (loose["edits"][loose["edits"] < 3] >= 1).all()
     assert loose["reached"][loose["edits"] < 3].all()
+
+
+def test_the_observation_comparison_changes_only_the_senses():
+    scale = b1.SCALES["smoke"]
+    paper, ours = b1.config_of(scale, "paper"), b1.config_of(scale, "paper-raidjax-senses")
+    assert (paper.senses, ours.senses) == ("reference", "raidjax") and ours.replace(senses="reference") == paper
+    assert b1.runs_of(scale, "paper") == b1.runs_of(scale, "paper-raidjax-senses")

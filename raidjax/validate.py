@@ -1,4 +1,4 @@
-"""Host-side checks of user input, shared by ``EnvConfig``, ``make_params`` and ``playtest``.
+"""Host-side checks of user input, shared by ``EnvConfig``, ``make_params``, ``playtest`` and the trainers' configs.
 
 Every check runs in plain Python before anything is traced or compiled, never coerces a value
 of the wrong type (a ``str``, a ``bool`` for a number, ``None``, a list), and raises a one-line
@@ -7,6 +7,7 @@ of the wrong type (a ``str``, a ``bool`` for a number, ``None``, a list), and ra
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import jax
@@ -138,3 +139,37 @@ def name(field: str, value, known, what: str) -> str:
     if value not in known:
         raise fail(field, value, allowed, f"an unknown {what}")
     return value
+
+
+# --- the fields of config dataclasses (trainers.config) ------------------------------------------
+
+def is_number(v) -> bool:
+    """A finite int or float, not a bool."""
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def check_fields(obj, bounds: dict[str, tuple]) -> None:
+    """Check every field of the dataclass ``obj`` against its annotated type (``int``, ``float``,
+    ``bool``; no string or bool coercion) and ``bounds``: ``name -> (low, high[, wording])`` with
+    ``None`` for no bound and an exclusive low when the wording says ``"> low"``.
+
+    Raises:
+        ValueError: ``"<field>: value <v!r> ...; allowed: ..."``, one line.
+    """
+    for f in dataclasses.fields(obj):
+        v, kind = getattr(obj, f.name), str(f.type)
+        ok = {"int": isinstance(v, int) and not isinstance(v, bool), "float": is_number(v),
+              "bool": isinstance(v, bool)}.get(kind, True)
+        if not ok:
+            raise fail(f.name, v, kind_word(kind))
+        if f.name in bounds:
+            low, high, *wording = bounds[f.name]
+            exclusive = bool(wording) and wording[0].startswith(">")
+            if (low is not None and (v <= low if exclusive else v < low)) or (high is not None and v > high):
+                allowed = wording[0] if wording else (f">= {low}" if high is None else f"in [{low}, {high}]")
+                raise ValueError(f"{f.name}: value {v!r}; allowed: {kind_word(kind)} {allowed}")
+
+
+def kind_word(kind: str) -> str:
+    """``"int"`` -> ``"a whole number"``, ``"float"`` -> ``"a number"``, ``"bool"`` -> ``"true or false"``."""
+    return {"int": "a whole number", "float": "a number", "bool": "true or false"}.get(kind, kind)

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from pathlib import Path
 
 from raidjax import catalogue, pcg, validate
 from raidjax.types import SENSES
+from raidjax.validate import check_fields, is_number
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,7 +125,7 @@ class Config:
             "ent_coef": (0, None)})
         ranges = self.skill_ranges
         if (isinstance(ranges, str | bytes) or not hasattr(ranges, "__len__") or not len(ranges)
-                or not all(_number(r) and 1 <= r <= 20 for r in ranges)):
+                or not all(is_number(r) and 1 <= r <= 20 for r in ranges)):
             raise ValueError(f"skill_ranges: value {ranges!r}; allowed: a non-empty list of numbers in [1, 20]")
         object.__setattr__(self, "skill_ranges", tuple(float(r) for r in ranges))  # JSON lists -> hashable
         for name in ("players", "parameters"):
@@ -156,37 +156,6 @@ class Config:
     def from_dict(cls, d: dict) -> Config:
         """Inverse of ``to_dict``; raises ``ValueError`` naming unknown keys."""
         return cls().replace(**known_fields(cls, d))
-
-
-def _number(v) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def check_fields(obj, bounds: dict[str, tuple]) -> None:
-    """Check every field of the dataclass ``obj`` against its annotated type (``int``, ``float``,
-    ``bool``; no string or bool coercion) and ``bounds``: ``name -> (low, high[, wording])`` with
-    ``None`` for no bound and an exclusive low when the wording says ``"> low"``.
-
-    Raises:
-        ValueError: ``"<field>: value <v!r> ...; allowed: ..."``, one line.
-    """
-    for f in dataclasses.fields(obj):
-        v, kind = getattr(obj, f.name), str(f.type)
-        ok = {"int": isinstance(v, int) and not isinstance(v, bool), "float": _number(v),
-              "bool": isinstance(v, bool)}.get(kind, True)
-        if not ok:
-            raise validate.fail(f.name, v, kind_word(kind))
-        if f.name in bounds:
-            low, high, *wording = bounds[f.name]
-            exclusive = bool(wording) and wording[0].startswith(">")
-            if (low is not None and (v <= low if exclusive else v < low)) or (high is not None and v > high):
-                allowed = wording[0] if wording else (f">= {low}" if high is None else f"in [{low}, {high}]")
-                raise ValueError(f"{f.name}: value {v!r}; allowed: {kind_word(kind)} {allowed}")
-
-
-def kind_word(kind: str) -> str:
-    """``"int"`` -> ``"a whole number"``, ``"float"`` -> ``"a number"``, ``"bool"`` -> ``"true or false"``."""
-    return {"int": "a whole number", "float": "a number", "bool": "true or false"}.get(kind, kind)
 
 
 def known_fields(cls, d: dict) -> dict:

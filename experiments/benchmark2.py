@@ -298,7 +298,7 @@ def main(argv=None) -> dict:
     config = {"benchmark": 2, "scale": a.scale, "seed": a.seed, "protocol": dataclasses.asdict(pr),
               **dataclasses.asdict(scale),
               "ppo_config": dataclasses.asdict(ppo_config(scale)), "targets": list(pm.TARGETS)}
-    run = RunFolder(a.out, config, resume=a.resume)
+    run = RunFolder(a.out, config, resume=a.resume, ignore=("bootstrap",))  # report-only: may change
     if run.finished:
         return run.already_finished()
     train_games, gen_games = planned_games(scale, pr)

@@ -152,7 +152,7 @@ def train(learner: Learner, ckpt_dir: str | Path, metrics_dir: str | Path, *, me
             + learner.describe(new_rows[-1]))
         stopping = u == total or chunks_here == max_chunks
         if (u // per) % checkpoint_every == 0 or stopping:
-            meta = {"chunk": -(-u // per), "update": u, "env_steps": u * learner.steps_per_update,
+            meta = {"update": u, "env_steps": u * learner.steps_per_update,
                     "seconds": seconds_before + train_s}
             checkpoint.save(ckpt_dir, state, learner.policy(state), learner.config, meta, max_to_keep=max_to_keep)
     if u < total:

@@ -47,8 +47,7 @@ class RunFolderError(ValueError):
 
 # Settings added after run folders were first saved, with the value every older run played with:
 # a saved run without the key resumes as long as the new value is that one.
-# ("bootstrap": Benchmark 2's report resamples, added with its intervals, a report-only setting.)
-ADDED_SETTINGS = {"senses": "raidjax", "bootstrap": 1000}
+ADDED_SETTINGS = {"senses": "raidjax"}
 
 
 def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:

@@ -13,7 +13,7 @@ import json
 
 import jax
 
-from raidjax.pcg import metrics as pm
+from raidjax.pcg import quality as pm
 from raidjax.xla_flags import use_recommended_xla_flags
 
 

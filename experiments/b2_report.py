@@ -2,7 +2,7 @@
 and the t-SNE / controllability / error-vs-diversity figures, from the generated skills of
 ``experiments.benchmark2``.
 
-Metrics are numpy (``raidjax.pcg.metrics``); the
+Metrics are numpy (``raidjax.pcg.quality``); the
 paper's numbers are transcribed from its Tables "controllability" and "diversity" (RaidEnv §5.3).
 """
 
@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from raidjax import pcg  # noqa: E402
-from raidjax.pcg import metrics as pm  # noqa: E402
+from raidjax.pcg import quality as pm  # noqa: E402
 from trainers.runfolder import RunFolder, markdown_table  # noqa: E402
 
 # Paper, controllability table: target -> (W_c mean, W_c SD, |W_t - W_c| mean, SD).

@@ -230,7 +230,7 @@ def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
         w, config = checkpoint.load_policy_weights(ckpt / str(checkpoint.latest_step(ckpt)))  # the final one
         config = PPOConfig.from_dict(config)
         groups = jax.tree.leaves(w)[0].shape[0]  # seeds, or seeds x targets when the target is not observed
-        _, labels = target_groups(config, groups if config.observe_target else groups // len(pcg.metrics.TARGETS))
+        _, labels = target_groups(config, groups if config.observe_target else groups // len(pcg.quality.TARGETS))
         gens = generate_episodes(jax.random.PRNGKey(seed + 200 + g), config, w, labels, gen_games=scale.gen_games,
                         greedy=False, episodes=scale.episodes, eval_games=0, baselines=False,
                         max_edits=scale.max_edits, **testers[name])["PPO"]

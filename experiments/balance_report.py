@@ -10,7 +10,7 @@ testers reached on it) and writes ``tables/skill_gap.md``, ``tables/balance.md``
 Definitions (PROTOCOLS.md §13). A skill's *gap* is ``learned - scripted``: how much more the
 learned team wins with it than PT-HR. A generator's *error under a tester* is ``|w - target|``
 with that tester's win rate ``w``; diversity is Benchmark 2's PC1 SD over the skills within 0.1 of
-their target under that tester (``raidjax.pcg.metrics.diversity``).
+their target under that tester (``raidjax.pcg.quality.diversity``).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from raidjax.io import HelpFormatter, run_cli
-from raidjax.pcg import metrics as pm
+from raidjax.pcg import quality as pm
 from trainers.runfolder import RunFolder, markdown_table
 
 TESTERS = ("learned", "scripted")

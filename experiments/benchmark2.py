@@ -9,7 +9,7 @@ last finished one, and ``train`` also resumes mid-training from its latest orbax
 1. ``train``: PPO-PCGRL (``trainers.ppo_pcgrl``) in jitted chunks, orbax checkpoints in
    ``DIR/checkpoints/ppo``, per-update metrics in ``train/metrics.csv``, progress in ``log.txt``.
 2. ``generate``: the trained PPO, PCG-HR and PCG-RD generators run ``episodes`` episodes per target
-   (0.1..0.7) under the protocol (``raidjax.pcg.metrics.PROTOCOLS``). ``paper`` (default): strict
+   (0.1..0.7) under the protocol (``raidjax.pcg.quality.PROTOCOLS``). ``paper`` (default): strict
    40-decision episodes, every decision measured with ``eval_games`` (300) PT-HR games, greedy PPO,
    each episode's last measured skill kept with that measurement. ``raidjax``: episodes end at the
    band, ``gen_games`` per measurement, sampled PPO, the final skill re-measured with
@@ -41,7 +41,7 @@ import numpy as np
 
 from raidjax import pcg
 from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
-from raidjax.pcg import metrics as pm
+from raidjax.pcg import quality as pm
 from trainers import checkpoint, loop
 from trainers.config import PPOConfig, load_config
 from trainers.generate import generate_episodes, target_groups

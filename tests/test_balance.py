@@ -107,7 +107,7 @@ def _rows(path):
 def test_skill_gap_table_is_recomputed_from_the_raw_outputs(tmp_path):
     rng = np.random.default_rng(5)
     n = 56
-    data = {"generator": np.repeat([0, 1], n // 2), "target": np.tile(np.repeat(pcg.metrics.TARGETS, 4), 2),
+    data = {"generator": np.repeat([0, 1], n // 2), "target": np.tile(np.repeat(pcg.quality.TARGETS, 4), 2),
             "skill": rng.uniform(pcg.PAPER_SPACE.low, pcg.PAPER_SPACE.high, (n, 4)),
             "learned": rng.integers(0, 101, n) / 100,
             "scripted": rng.integers(0, 101, n) / 100}
@@ -115,7 +115,7 @@ def test_skill_gap_table_is_recomputed_from_the_raw_outputs(tmp_path):
     rf = RunFolder(tmp_path, {"experiment": "test"})
     summary = balance_report.report(rf)
     rows = _rows(tmp_path / "csv" / "skill_gap.csv")
-    assert len(rows) == 2 * len(pcg.metrics.TARGETS)
+    assert len(rows) == 2 * len(pcg.quality.TARGETS)
     for r in rows:  # an independent loop over the raw rows
         g = balance.GENERATORS.index(r["generator"])
         idx = [i for i in range(n) if data["generator"][i] == g and abs(data["target"][i] - float(r["target"])) < 1e-9]
@@ -154,7 +154,7 @@ def test_smoke_loop_on_a_mixed_team_with_eight_parameters(tmp_path, capsys):
         assert np.all((data[k] >= 0) & (data[k] <= 1))
     # the stored table is what the raw outputs give
     stored, fresh = _rows(out / "csv" / "skill_gap.csv"), balance_report.skill_gap_rows(data)
-    assert len(stored) == len(fresh) == 2 * len(pcg.metrics.TARGETS)
+    assert len(stored) == len(fresh) == 2 * len(pcg.quality.TARGETS)
     for s, f in zip(stored, fresh, strict=True):
         assert s["generator"] == f["generator"] and int(s["n"]) == f["n"]
         for k in ("target", "learned", "scripted", "gap", "error_learned", "error_scripted"):

@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 
 from experiments import benchmark2 as b2
-from raidjax.pcg import metrics as pm
+from raidjax.pcg import quality as pm
 
 
 def _csv(path):
@@ -78,7 +78,7 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
         np.testing.assert_array_equal(g["win_rate"], g["gen_win_rate"])
         assert np.allclose(g["win_rate"] * 16, np.round(g["win_rate"] * 16))
 
-    # Controllability CSV == pcg_metrics.controllability recomputed from generated.npz, every
+    # Controllability CSV == pcg.quality.controllability recomputed from generated.npz, every
     # (method, target) group cut to the smallest group's size (here: E).
     rows = _csv(out / "csv" / "controllability.csv")
     for m, g in gens.items():

@@ -10,7 +10,7 @@ from helpers import pcg_state as _state
 
 import raidjax
 from raidjax import pcg, policies
-from raidjax.pcg import metrics as pm
+from raidjax.pcg import quality as pm
 
 LOW, HIGH = np.array(pcg.PAPER_SPACE.low), np.array(pcg.PAPER_SPACE.high)
 TICK = (HIGH - LOW) / 6

@@ -16,7 +16,7 @@ import raidjax
 from experiments import benchmark1 as b1
 from experiments import benchmark2 as b2
 from raidjax import pcg
-from raidjax.pcg import metrics as pm
+from raidjax.pcg import quality as pm
 from trainers.config import PRESETS, from_agent_steps
 from trainers.curriculum import next_ranges
 from trainers.generate import method_policy

@@ -3,7 +3,7 @@ protocol: the library behind ``trainers.ppo_pcgrl_cli`` and ``experiments.benchm
 
     gens = generate_episodes(key, config, weights, labels, gen_games=300, greedy=True, episodes=20,
                     eval_games=0, strict_length=True, max_edits=39)
-    summary = raidjax.pcg.metrics.summarize(gens, protocol)
+    summary = raidjax.pcg.quality.summarize(gens, protocol)
 """
 
 from __future__ import annotations
@@ -31,13 +31,13 @@ def target_groups(config: PPOConfig, seeds: int) -> tuple[np.ndarray, list[tuple
     """
     if config.observe_target:
         return np.tile(np.asarray(config.target, np.float32), (seeds, 1)), [(None, s) for s in range(seeds)]
-    pairs = [(t, s) for t in pcg.metrics.TARGETS for s in range(seeds)]
+    pairs = [(t, s) for t in pcg.quality.TARGETS for s in range(seeds)]
     return np.asarray([[t, t] for t, _ in pairs], np.float32), pairs
 
 
 @cache
 def method_policy(hidden: tuple, greedy: bool = False, n_params: int = pcg.env.N_PARAMS):
-    """One generator policy for PPO, PCG-HR and PCG-RD, so that ``pcg.metrics.generate`` compiles
+    """One generator policy for PPO, PCG-HR and PCG-RD, so that ``pcg.quality.generate`` compiles
     once per episode count rather than once per method: ``policy({"net": weights, "method":
     int32[]}, key, obs, state, params) -> int32[n_params]`` with method 0 = PPO (``make_generator_policy(hidden,
     greedy, n_params)``), 1 = PCG-HR, 2 = PCG-RD. ``method`` is not batched, so the ``lax.switch`` stays a
@@ -74,7 +74,7 @@ def generate_episodes(key: jax.Array, config: PPOConfig, weights, labels: list, 
             by default).
 
     Returns:
-        ``{method: pcg.metrics.generate output}`` (numpy arrays, PPO's pooled over groups).
+        ``{method: pcg.quality.generate output}`` (numpy arrays, PPO's pooled over groups).
     """
     # the training env (generate sets the targets)
     p = env_params(config, tester=tester, tester_weights=tester_weights).replace(n_games=gen_games)
@@ -86,14 +86,14 @@ def generate_episodes(key: jax.Array, config: PPOConfig, weights, labels: list, 
     parts = []
     for g, (t, _) in enumerate(labels):
         params_g = {"net": jax.tree.map(lambda x, g=g: x[g], weights), "method": jnp.int32(0)}
-        targets = pcg.metrics.TARGETS if t is None else (t,)
-        parts.append(pcg.metrics.generate(jax.random.fold_in(key, g), policy, p, policy_params=params_g,
+        targets = pcg.quality.TARGETS if t is None else (t,)
+        parts.append(pcg.quality.generate(jax.random.fold_in(key, g), policy, p, policy_params=params_g,
                                           targets=targets, episodes=eps, eval_games=eval_games))
     gens = {"PPO": {k: np.concatenate([d[k] for d in parts]) for k in parts[0]}}
     if baselines:
         net0 = jax.tree.map(lambda x: x[0], weights)
         for i, name in enumerate(("PCG-HR", "PCG-RD")):
-            gens[name] = pcg.metrics.generate(jax.random.fold_in(key, 10_000 + i), policy, p,
+            gens[name] = pcg.quality.generate(jax.random.fold_in(key, 10_000 + i), policy, p,
                                               policy_params={"net": net0, "method": jnp.int32(i + 1)},
                                               episodes=episodes, eval_games=eval_games)
     return gens

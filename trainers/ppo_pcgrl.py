@@ -216,7 +216,7 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
 @cache
 def make_generator_policy(hidden: tuple, greedy: bool = False, n_params: int = pcg.env.N_PARAMS):
     """Generator policy ``policy(net_params, key, obs, state, params) -> int32[n_params]`` for
-    ``raidjax.pcg.metrics.generate`` (cached, so the same hashable function is reused and jit does
+    ``raidjax.pcg.quality.generate`` (cached, so the same hashable function is reused and jit does
     not recompile). ``greedy`` takes the argmax of each branch (the paper's generation);
     otherwise each branch is sampled."""
     net = ActorCritic(tuple(hidden), n_params)

@@ -250,7 +250,7 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
         gens = generate_episodes(jax.random.key(seed + 1), config, done.state["params"], labels,
                         gen_games=ev["eval_gen_games"], greedy=ev["greedy"], episodes=ev["eval_episodes"],
                         eval_games=ev["eval_games"], baselines=not ev["no_baselines"], **team)
-        summ = pcg.metrics.summarize(gens)
+        summ = pcg.quality.summarize(gens)
         atomic_write(rf.out / "eval.json", finite_json(summ, indent=1))
         for name, s in summ.items():
             c = s["controllability"]

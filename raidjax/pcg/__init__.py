@@ -1,6 +1,6 @@
 """Content generation on top of the game rules (GAME.md §10, PROTOCOLS.md §11): the generator environment
 (``raidjax.pcg.env``), the paper's PCG-RD / PCG-HR baselines (``raidjax.pcg.baselines``), and
-generation runs with the controllability / diversity metrics (``raidjax.pcg.metrics``).
+generation runs with the controllability / diversity metrics (``raidjax.pcg.quality``).
 
     from raidjax import pcg
     params = pcg.make_pcg_params(target=0.5)
@@ -8,7 +8,7 @@ generation runs with the controllability / diversity metrics (``raidjax.pcg.metr
     obs, state, reward, done, info = pcg.step(key, state, action, params)
 """
 
-from raidjax.pcg import env, metrics, space
+from raidjax.pcg import env, quality, space
 from raidjax.pcg.baselines import pcg_hr, pcg_rd
 from raidjax.pcg.env import (
     PCGParams,
@@ -28,5 +28,5 @@ from raidjax.pcg.space import PAPER_SPACE, Space, make_space, parse_space
 __all__ = [
     "PAPER_SPACE", "Space", "PCGParams", "PCGState", "base_game", "pcg_hr", "pcg_rd", "in_band",
     "make_pcg_params", "make_space", "measure", "parse_space", "play_outcomes", "reset", "step", "step_autoreset",
-    "env", "metrics", "space",
+    "env", "quality", "space",
 ]

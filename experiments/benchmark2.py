@@ -102,11 +102,13 @@ SCALES = {
     # Sized for a 2-core CPU (the paper protocol: 40-decision episodes,
     # 300-game measurements, greedy PPO): the cpu preset (one model for all targets, target observed;
     # N = 50 games per training measurement) trained for 10 240 generator steps (paper: 20 000 per
-    # model, one model per target and seed), 6 episodes per target and method (paper: 5 000 skills per
-    # target, 300 kept). About 2 M PT-HR games: 4 h on that CPU (2026-11-26, RESULTS), over the 3 h
-    # it was sized for (training measured at ~113 games/s: 32 episodes x 50 games are too few
-    # arenas to fill its vectors; a generation part, 252 000 games, 27 min).
-    "cpu": Scale(preset="cpu", ppo=dict(total_steps=10240), seeds=1, chunk=5, episodes=6, parts=6,
+    # model, one model per target and seed), 3 episodes per target and method (paper: 5 000 skills per
+    # target, 300 kept), in 3 parts. Measured stages on that CPU (2026-11-26, RESULTS): training
+    # 1 h 24 min (~113 games/s: 32 episodes x 50 games are too few arenas to fill its vectors), a
+    # generation part (252 000 games) 27-36 min, so about 2 h 45 min in all, inside the 3 h it is
+    # sized for; the results page's run used --episodes 6 (6 parts) and took about 4 h 10 min.
+    # Part i's key does not depend on the number of parts, so --episodes 6 extends a 3-episode run.
+    "cpu": Scale(preset="cpu", ppo=dict(total_steps=10240), seeds=1, chunk=5, episodes=3, parts=3,
                  gen_games=100, eval_games=300),
     # The paper's budgets: one model per fixed (unobserved) target, 5 seeds, 20 000 steps, N = 100
     # in training and 300 in evaluation, 5 models x 1 000 skills per target (paper §5.3; PCG-HR and
@@ -125,7 +127,7 @@ def _parse(argv=None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="python -m experiments.benchmark2",
                                  description="Benchmark 2 (content generation) of the RaidEnv paper",
                                  formatter_class=HelpFormatter)
-    add_run_arguments(ap, SCALES, "budgets: smoke (minutes), cpu (about 4 hours on 2 cores), paper")
+    add_run_arguments(ap, SCALES, "budgets: smoke (minutes), cpu (about 3 hours on 2 cores), paper")
     ap.add_argument("--protocol", choices=sorted(pm.PROTOCOLS), default="paper",
                     help="paper: strict 40-decision episodes measured with eval_games games at every edit, greedy "
                     "PPO, last measured skill, groups cut to 300; raidjax: early stop at the band, sampled PPO, "
@@ -142,7 +144,8 @@ def _parse(argv=None) -> argparse.Namespace:
                     help="PPO generator steps per group (default: the scale's)")
     ap.add_argument("--seeds", type=whole_number_arg(1), help="PPO seeds trained together (default: the scale's)")
     ap.add_argument("--episodes", type=whole_number_arg(1),
-                    help="generation episodes per target and method (default: the scale's)")
+                    help="generation episodes per target and method, in parts of the scale's size (cpu: 1 "
+                    "episode per part), so a larger count extends a finished run (default: the scale's)")
     ap.add_argument("--pool-repeats", action="store_true",
                     help="generation env: re-measuring an unchanged skill pools its games (all three "
                     "generators, training and generation)")
@@ -232,7 +235,7 @@ def generation_kwargs(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: i
 
 # Wall-clock of a whole run per scale, as measured (docs/RESULTS.md); printed before a run starts.
 MEASURED_WALL = {"smoke": "a few minutes",
-                 "cpu": "about 4 h (2026-11-26: training 1 h 24 min, 27 min per generation part)"}
+                 "cpu": "about 2 h 45 min (2026-11-26: training 1 h 24 min, 27 min per generation part)"}
 
 
 def planned_games(scale: Scale, pr: pm.Protocol) -> tuple[int, int]:
@@ -280,20 +283,33 @@ def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "pap
             "seconds": time.perf_counter() - t0}
 
 
+def scale_of(a) -> Scale:
+    """The run's ``Scale``: ``SCALES[a.scale]`` with the command line's overrides (``_parse``'s
+    namespace). ``--episodes`` keeps the scale's episodes per part and sets the number of parts, so
+    part i (keyed by i alone) is the same whatever the count. Raises ValueError naming the flag."""
+    scale = SCALES[a.scale]
+    ppo = {"edit_cost": a.edit_cost, "goal_cost": a.goal_cost, "goal_axis": a.goal_axis,
+           "ent_coef": a.ent_coef, "total_steps": a.total_steps,
+           "pool_repeats": a.pool_repeats or None}
+    per_part = scale.episodes // scale.parts
+    if a.episodes is not None and a.episodes % per_part:
+        raise ValueError(f"--episodes: {a.episodes} must be a multiple of the {a.scale} scale's "
+                         f"{per_part} episodes per part")
+    episodes = {} if a.episodes is None else {"episodes": a.episodes, "parts": a.episodes // per_part}
+    scale = dataclasses.replace(scale, ppo={**scale.ppo, **{k: v for k, v in ppo.items() if v is not None}},
+                                **({"seeds": a.seeds} if a.seeds is not None else {}), **episodes)
+    if per_part % scale.seeds:
+        raise ValueError(f"--seeds: {scale.seeds} PPO seeds must split the {per_part} episodes per part "
+                         f"per target evenly")
+    return scale
+
+
 def main(argv=None) -> dict:
     """Run (or resume) Benchmark 2 at one scale. Returns the summary dict (also the last stdout line)."""
     from experiments import b2_report
 
     a = _parse(argv)
-    scale = SCALES[a.scale]
-    ppo = {"edit_cost": a.edit_cost, "goal_cost": a.goal_cost, "goal_axis": a.goal_axis,
-           "ent_coef": a.ent_coef, "total_steps": a.total_steps,
-           "pool_repeats": a.pool_repeats or None}
-    scale = dataclasses.replace(scale, ppo={**scale.ppo, **{k: v for k, v in ppo.items() if v is not None}},
-                                **{k: v for k, v in (("seeds", a.seeds), ("episodes", a.episodes)) if v is not None})
-    if scale.episodes % scale.parts or (scale.episodes // scale.parts) % scale.seeds:
-        raise ValueError(f"episodes: {scale.episodes} per target must split evenly into {scale.parts} parts "
-                         f"and, per part, over {scale.seeds} PPO seeds")
+    scale = scale_of(a)
     pr = protocol_of(scale, a.protocol)
     config = {"benchmark": 2, "scale": a.scale, "seed": a.seed, "protocol": dataclasses.asdict(pr),
               **dataclasses.asdict(scale),

@@ -208,9 +208,22 @@ def test_the_plan_counts_the_games_a_run_plays():
     # measurement and 3 measured edits of 16 games, for 3 methods x 7 targets x 2 episodes.
     s = b2.SCALES["smoke"]
     assert b2.planned_games(s, b2.protocol_of(s, "paper")) == (2 * 4 * 4 * 8, 3 * 7 * 2 * 4 * 16)
-    # cpu: 40 updates x 32 x 8 steps x 50 games; 40 measurements of 300 games per episode, 6 episodes.
+    # cpu: 40 updates x 32 x 8 steps x 50 games; 40 measurements of 300 games per episode, 3 episodes.
     c = b2.SCALES["cpu"]
-    assert b2.planned_games(c, b2.protocol_of(c, "paper")) == (40 * 256 * 50, 3 * 7 * 6 * 40 * 300)
+    assert b2.planned_games(c, b2.protocol_of(c, "paper")) == (40 * 256 * 50, 3 * 7 * 3 * 40 * 300)
+
+
+def test_episodes_flag_adds_parts_of_the_scales_size():
+    # A larger --episodes keeps the episodes per part, so a finished run's parts (keyed by their
+    # index alone) are the first parts of the longer run; a count that does not split is refused.
+    cpu = b2.scale_of(b2._parse(["--scale", "cpu", "--out", "x", "--episodes", "6"]))
+    assert (cpu.episodes, cpu.parts) == (6, 6) and b2.SCALES["cpu"].episodes // b2.SCALES["cpu"].parts == 1
+    paper = b2.scale_of(b2._parse(["--scale", "paper", "--out", "x", "--episodes", "200"]))
+    assert (paper.episodes, paper.parts) == (200, 2)
+    with pytest.raises(ValueError, match="--episodes: 150 must be a multiple of the paper scale's 100"):
+        b2.scale_of(b2._parse(["--scale", "paper", "--out", "x", "--episodes", "150"]))
+    with pytest.raises(ValueError, match="--seeds: 3 PPO seeds must split the 2 episodes"):
+        b2.scale_of(b2._parse(["--scale", "smoke", "--out", "x", "--seeds", "3"]))
 
 
 def test_bootstrap_intervals_bracket_the_estimate_and_collapse_on_identical_episodes():

@@ -6,20 +6,40 @@ traced): ``atomic_write`` (every file a user keeps), ``finite_json``, ``machine`
 from __future__ import annotations
 
 import argparse
+import datetime
 import os
 import platform
+import subprocess
 import tempfile
+from functools import partial
 from pathlib import Path
 
 import jax
 
 
+def source_commit() -> str | None:
+    """The git commit of the raidjax source this process imported (short hash, ``"+dirty"`` appended
+    when tracked files differ from it), or ``None`` outside a git checkout (an installed wheel)."""
+    here = Path(__file__).resolve().parent
+    try:
+        run = partial(subprocess.run, cwd=here, capture_output=True, text=True, timeout=10, check=True)
+        head = run(["git", "rev-parse", "--short", "HEAD"]).stdout.strip()
+        dirty = run(["git", "status", "--porcelain", "--untracked-files=no"]).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("+dirty" if dirty else "") if head else None
+
+
 def machine(load: bool = False) -> dict:
-    """A JSON-able description of the JAX devices and the host: ``platform``, ``device``,
-    ``device_count`` (devices JAX sees, all hosts), ``cpu_count``, ``processor``, ``jax`` version, and
-    with ``load`` the 1-minute load average (``load_average_1m``; timings on a shared machine depend on it)."""
+    """A JSON-able description of the run, so a stored result says what produced it: ``date`` (UTC,
+    ISO 8601), ``commit`` (``source_commit``), the JAX devices (``platform``, ``device``,
+    ``device_count``: devices JAX sees, all hosts), the host (``cpu_count``, ``processor``), the
+    ``jax`` version, and with ``load`` the 1-minute load average (``load_average_1m``; timings on a
+    shared machine depend on it)."""
     dev = jax.devices()[0]
-    out = {"platform": dev.platform, "device": str(dev.device_kind), "device_count": jax.device_count(),
+    out = {"date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+           "commit": source_commit(),
+           "platform": dev.platform, "device": str(dev.device_kind), "device_count": jax.device_count(),
            "cpu_count": os.cpu_count(),
            "processor": platform.processor() or platform.machine(), "jax": jax.__version__}
     if load:

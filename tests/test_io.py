@@ -1,0 +1,27 @@
+"""Host plumbing: what every stored result records about the run that produced it."""
+
+from __future__ import annotations
+
+import datetime
+import subprocess
+from pathlib import Path
+
+from raidjax import io
+
+
+def test_machine_records_date_commit_and_devices():
+    m = io.machine(load=True)
+    # The date is now, in UTC; the commit is this checkout's HEAD (git itself asked independently).
+    age = datetime.datetime.now(datetime.UTC) - datetime.datetime.fromisoformat(m["date"])
+    assert datetime.timedelta(0) <= age < datetime.timedelta(minutes=5)
+    repo = Path(io.__file__).resolve().parent
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=repo, capture_output=True, text=True).stdout.strip()
+    if head:  # a git checkout (CI clones one); an installed wheel records None
+        assert head.startswith(m["commit"].removesuffix("+dirty"))
+    assert m["device_count"] >= 1 and m["cpu_count"] >= 1 and "load_average_1m" in m
+
+
+def test_source_commit_is_none_outside_a_git_checkout(monkeypatch, tmp_path):
+    monkeypatch.setattr(io, "__file__", str(tmp_path / "io.py"))
+    monkeypatch.setenv("GIT_CEILING_DIRECTORIES", str(tmp_path.parent))
+    assert io.source_commit() is None

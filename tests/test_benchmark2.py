@@ -28,6 +28,9 @@ def test_paper_scale_is_wired_to_the_paper_budgets():
         20_000, 100, False, 5, 300, 300)
     assert s.episodes == 5 * 1000 and s.decisions is None  # 5 models x 1000 skills per target, 40 decisions
     assert b2.SCALES["cpu"].eval_games == 300
+    # gpu: the paper's models and measurements, 1000 skills per target and method (300 are kept).
+    g = b2.SCALES["gpu"]
+    assert b2.ppo_config(g) == cfg and (g.seeds, g.eval_games, g.gen_games, g.episodes) == (5, 300, 300, 1000)
     for sc in b2.SCALES.values():  # episodes split evenly into parts and over the PPO seeds
         assert sc.episodes % sc.parts == 0 and (sc.episodes // sc.parts) % sc.seeds == 0
 

@@ -105,8 +105,8 @@ SCALES = {
     # model, one model per target and seed), 3 episodes per target and method (paper: 5 000 skills per
     # target, 300 kept), in 3 parts. Measured stages on that CPU (2026-11-26, RESULTS): training
     # 1 h 24 min (~113 games/s: 32 episodes x 50 games are too few arenas to fill its vectors), a
-    # generation part (252 000 games) 27-36 min, so about 2 h 45 min in all, inside the 3 h it is
-    # sized for; the results page's run used --episodes 6 (6 parts) and took about 4 h 10 min.
+    # generation part (252 000 games) 27-36 min, so about 2 h 55 min in all, at the edge of the 3 h
+    # it is sized for; the results page's run used --episodes 6 (6 parts).
     # Part i's key does not depend on the number of parts, so --episodes 6 extends a 3-episode run.
     "cpu": Scale(preset="cpu", ppo=dict(total_steps=10240), seeds=1, chunk=5, episodes=3, parts=3,
                  gen_games=100, eval_games=300),
@@ -242,7 +242,7 @@ def generation_kwargs(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: i
 
 # Wall-clock of a whole run per scale, as measured (docs/RESULTS.md); printed before a run starts.
 MEASURED_WALL = {"smoke": "a few minutes",
-                 "cpu": "about 2 h 45 min (2026-11-26: training 1 h 24 min, 27 min per generation part)"}
+                 "cpu": "about 2 h 55 min (2026-11-26: training 1 h 24 min, 27-36 min per generation part)"}
 
 
 def planned_games(scale: Scale, pr: pm.Protocol) -> tuple[int, int]:

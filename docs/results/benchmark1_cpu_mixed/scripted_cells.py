@@ -1,5 +1,5 @@
 """PT-HR and PT-RD on Benchmark 1's mixed-team content (warrior, mage, priest; catalogue skills):
-the cells ``experiments.benchmark1.evaluate`` plays for its scripted rows, 2 batches x 500 games
+the cells ``experiments.benchmark1.stage_evaluate`` plays for its scripted rows, 2 batches x 500 games
 per range. Writes ``scripted_cells.json`` (win rate per range and batch)."""
 
 import json

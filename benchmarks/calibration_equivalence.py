@@ -50,7 +50,8 @@ def main() -> None:
             z, p = two_proportion(a[pol]["win_rate"][j], b[pol]["win_rate"][j], args.games, args.games)
             cells.append({"policy": pol, "range": r, "one_game_per_arena": a[pol]["win_rate"][j],
                           "chained": b[pol]["win_rate"][j], "z": round(z, 3), "p": round(p, 4)})
-    print(json.dumps({"benchmark": "calibration_equivalence", "machine": machine(), "games_per_cell": args.games,
+    print(json.dumps({"benchmark": "calibration_equivalence", "machine": machine(load=True),
+                      "games_per_cell": args.games,
                       "chained_games_per_arena": auto_games_per_arena(args.games),
                       "seconds": seconds, "cells": cells, "min_p": min(c["p"] for c in cells)}))
 

@@ -35,7 +35,8 @@ def main() -> None:
         res = raidjax.playtest(jax.random.key(args.seed), raidjax.make_params(skill_range=r),
                                raidjax.policies.heuristic, args.arenas * k, games_per_arena=k)
         won = np.asarray(res["outcome"] == raidjax.types.WIN).reshape(args.arenas, k)
-        print(json.dumps({"benchmark": "chain_position", "machine": machine(), "range": r, "arenas": args.arenas,
+        print(json.dumps({"benchmark": "chain_position", "machine": machine(load=True), "range": r,
+                          "arenas": args.arenas,
                           "games_per_arena": k, "win_rate_position_0": round(float(won[:, 0].mean()), 4),
                           "win_rate_by_block_of_8": [round(float(won[:, i:i + 8].mean()), 4) for i in range(0, k, 8)],
                           "win_rate_all": round(float(won.mean()), 4), "seconds": round(time.perf_counter() - t0, 1)}))

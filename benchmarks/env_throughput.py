@@ -103,7 +103,7 @@ def main() -> None:
 
     print(json.dumps({
         "benchmark": "env_throughput",
-        "machine": machine(),
+        "machine": machine(load=True),
         "arenas": args.arenas,
         "rules": args.rules,
         "n_substeps": args.substeps,

@@ -68,7 +68,7 @@ def main() -> None:
     n = args.arenas
     state_bytes = sum(x.dtype.itemsize * x.size for x in jax.tree.leaves(state)) / n
     print(json.dumps({
-        "benchmark": "step_cost", "machine": machine(), "arenas": n, "rules": args.rules,
+        "benchmark": "step_cost", "machine": machine(load=True), "arenas": n, "rules": args.rules,
         "n_substeps": args.substeps, "observation": args.observation, "state_bytes_per_arena": round(state_bytes),
         # The sub-step program also builds the per-decision effect table; it is taken out.
         "substep_bytes_per_arena": round((sub_cost["bytes"] - table_cost["bytes"]) / n),

@@ -121,7 +121,7 @@ def main() -> None:
         for name in args.rows:
             rows.append({"env": name, "arenas": n, **measure(makers[name](), n, args.steps, args.repeats)})
             print(json.dumps(rows[-1]), flush=True)
-    print(json.dumps({"benchmark": "vs_smax", "machine": machine(),
+    print(json.dumps({"benchmark": "vs_smax", "machine": machine(load=True),
                       "steps": args.steps, "raidjax_substeps": args.substeps, "rows": rows}))
 
 

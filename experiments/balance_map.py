@@ -13,9 +13,10 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from raidjax.io import atomic_write
+from raidjax.io import atomic_write, finite_json, machine
 
 DOCS_PNG = Path(__file__).resolve().parents[1] / "docs" / "img" / "balance_map.png"
+DOCS_JSON = Path(__file__).resolve().parents[1] / "docs" / "results" / "balance_map" / "win_rate.json"
 BALANCED = 0.5  # the win rate that separates "too easy" from "too hard"
 
 
@@ -89,3 +90,19 @@ def save_png(fig, path: str | Path, dpi: int = 100) -> Path:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     return atomic_write(path, buf.getvalue())
+
+
+def save_grid(path: str | Path, win_rate: np.ndarray, ranges: np.ndarray, cools: np.ndarray,
+              games_per_cell: int, seconds: float) -> Path:
+    """Save the map's data as JSON at ``path`` atomically, with the machine, date and commit that
+    measured it (``raidjax.io.machine``), so the figure can be redrawn and checked. Returns ``path``.
+
+    Args:
+        win_rate: ``float[R, C]``, row = range, column = cool time.
+        ranges, cools: ``float[R]`` and ``float[C]``, the grid's axes.
+    """
+    return atomic_write(path, finite_json({
+        "benchmark": "balance_map", "machine": machine(load=True), "policy": "PT-HR",
+        "games_per_cell": games_per_cell, "seconds": round(seconds, 1),
+        "ranges": [float(r) for r in ranges], "cool_times": [float(c) for c in cools],
+        "win_rate": np.asarray(win_rate, float).round(4).tolist()}) + "\n")

@@ -30,15 +30,20 @@ def source_commit() -> str | None:
     return head + ("+dirty" if dirty else "") if head else None
 
 
+# Read once, when the first command or benchmark imports this module: a result records the code the
+# process runs, even if the checkout moves on (a commit made during a long run) before it is written.
+SOURCE_COMMIT = source_commit()
+
+
 def machine(load: bool = False) -> dict:
     """A JSON-able description of the run, so a stored result says what produced it: ``date`` (UTC,
-    ISO 8601), ``commit`` (``source_commit``), the JAX devices (``platform``, ``device``,
+    ISO 8601), ``commit`` (``SOURCE_COMMIT``, read at import), the JAX devices (``platform``, ``device``,
     ``device_count``: devices JAX sees, all hosts), the host (``cpu_count``, ``processor``), the
     ``jax`` version, and with ``load`` the 1-minute load average (``load_average_1m``; timings on a
     shared machine depend on it)."""
     dev = jax.devices()[0]
     out = {"date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-           "commit": source_commit(),
+           "commit": SOURCE_COMMIT,
            "platform": dev.platform, "device": str(dev.device_kind), "device_count": jax.device_count(),
            "cpu_count": os.cpu_count(),
            "processor": platform.processor() or platform.machine(), "jax": jax.__version__}

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import raidjax
-from raidjax.io import HelpFormatter, atomic_write, check_output_file, run_cli, whole_number_arg
+from raidjax.io import HelpFormatter, atomic_write, check_output_file, machine, run_cli, whole_number_arg
 from raidjax.playtest import auto_games_per_arena
 
 RANGES = (5.0, 9.0, 13.0, 17.0)
@@ -111,7 +111,8 @@ def main(argv=None) -> int:
     print(f"{games} games in {seconds:.1f} s (compile included).")
     if args.json:
         payload = {"games_per_cell": args.games, "seed": args.seed, "rules": args.rules,
-                   "n_substeps": args.substeps, "seconds": round(seconds, 2), "table": table, "paper": PAPER}
+                   "n_substeps": args.substeps, "seconds": round(seconds, 2), "table": table, "paper": PAPER,
+                   "machine": machine(load=True)}
         atomic_write(args.json, json.dumps(payload, indent=2))
     ok = all(
         abs(w - p) <= TOLERANCE[n]

@@ -16,6 +16,8 @@ import csv
 import re
 from pathlib import Path
 
+from experiments.figures import save_png
+
 RANGES = (5.0, 9.0, 13.0, 17.0)
 
 
@@ -86,7 +88,7 @@ def main(argv=None) -> None:
     missing = [str(f / "train" / "metrics.csv") for f in folders if not (f / "train" / "metrics.csv").exists()]
     if missing:
         ap.error(f"folders: {missing[0]} does not exist; allowed: Benchmark 1 run folders or their copies")
-    figure([curves(f) for f in folders], args.labels).savefig(args.out, dpi=120)
+    save_png(figure([curves(f) for f in folders], args.labels), args.out, dpi=120)
     if all((f / "csv" / "win_rate_table.csv").exists() for f in folders):
         print(markdown([win_table(f) for f in folders], args.labels))
     print(args.out)

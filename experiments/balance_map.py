@@ -7,12 +7,12 @@ from the win-rate grid alone. ``DOCS_PNG`` is where the README's copy lives.
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
+from experiments.figures import save_png  # noqa: F401 (the notebook's writer, re-exported)
 from raidjax.io import atomic_write, finite_json, machine
 
 DOCS_PNG = Path(__file__).resolve().parents[1] / "docs" / "img" / "balance_map.png"
@@ -83,13 +83,6 @@ def balance_map_figure(win_rate: np.ndarray, ranges: np.ndarray, cools: np.ndarr
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="lower right", fontsize=8, framealpha=0.85)
     return fig, ax
-
-
-def save_png(fig, path: str | Path, dpi: int = 100) -> Path:
-    """Save ``fig`` as a PNG at ``path`` atomically (a reader never sees half a file). Returns ``path``."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    return atomic_write(path, buf.getvalue())
 
 
 def save_grid(path: str | Path, win_rate: np.ndarray, ranges: np.ndarray, cools: np.ndarray,

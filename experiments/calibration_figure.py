@@ -9,10 +9,10 @@ Each input is a ``raidjax.calibrate --json`` file (one seed, same ranges and gam
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
+from experiments.figures import figure_command
 from raidjax.calibrate import LABEL, PAPER, RANGES, TOLERANCE
 
 
@@ -48,16 +48,9 @@ def figure(tables: list[dict]):
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(prog="python -m experiments.calibration_figure", description=__doc__.split("\n")[0])
-    ap.add_argument("tables", nargs="+", help="raidjax.calibrate --json files, one per seed")
-    ap.add_argument("--out", required=True, help="the PNG to write")
-    args = ap.parse_args(argv)
-    try:
-        tables = [json.loads(Path(p).read_text()) for p in args.tables]
-    except (OSError, json.JSONDecodeError) as e:
-        ap.error(f"tables: cannot read a raidjax.calibrate --json file ({e})")
-    figure(tables).savefig(args.out, dpi=120)
-    print(args.out)
+    figure_command(argv, prog="python -m experiments.calibration_figure", doc=__doc__,
+                   inputs="raidjax.calibrate --json files, one per seed",
+                   read=lambda paths: [json.loads(Path(p).read_text()) for p in paths], draw=figure)
 
 
 if __name__ == "__main__":

@@ -11,9 +11,10 @@ Each input holds JSON objects, one per line or one per file; the ``vs_smax`` sum
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
+
+from experiments.figures import figure_command
 
 LABELS = {"smax-3m": "SMAX-3m", "raidjax-per-arena": "raidjax (per-arena content)",
           "raidjax-shared": "raidjax (one content)", "raidjax-jaxmarl": "raidjax (JaxMARL wrapper)"}
@@ -58,19 +59,17 @@ def figure(runs: list[dict]):
     return fig
 
 
-def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(prog="python -m experiments.speed_figure", description=__doc__.split("\n")[0])
-    ap.add_argument("inputs", nargs="+", help="benchmarks/vs_smax.py output files (JSON or JSON lines)")
-    ap.add_argument("--out", required=True, help="the PNG to write")
-    args = ap.parse_args(argv)
-    try:
-        runs = summaries(args.inputs)
-    except (OSError, json.JSONDecodeError) as e:
-        ap.error(f"inputs: cannot read a vs_smax JSON file ({e})")
+def _vs_smax_runs(paths: list[str]) -> list[dict]:
+    runs = summaries(paths)
     if not runs:
-        ap.error("inputs: no vs_smax summary (an object with \"benchmark\": \"vs_smax\") in them")
-    figure(runs).savefig(args.out, dpi=120)
-    print(args.out)
+        raise ValueError('no vs_smax summary (an object with "benchmark": "vs_smax") in them')
+    return runs
+
+
+def main(argv=None) -> None:
+    figure_command(argv, prog="python -m experiments.speed_figure", doc=__doc__,
+                   inputs="benchmarks/vs_smax.py output files (JSON or JSON lines)", read=_vs_smax_runs,
+                   draw=figure)
 
 
 if __name__ == "__main__":

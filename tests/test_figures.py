@@ -51,5 +51,11 @@ def test_speed_figure_reads_the_stored_vs_smax_runs_and_skips_other_lines(tmp_pa
     out = tmp_path / "speed.png"
     speed_figure.main([*map(str, stored), "--out", str(out)])
     assert out.stat().st_size > 1000
-    with pytest.raises(SystemExit):  # a file without a vs_smax summary
-        speed_figure.main([str(ROOT / "docs" / "results" / "speed" / "step_cost.json"), "--out", str(out)])
+    other = tmp_path / "step_cost.json"
+    other.write_text('{"benchmark": "step_cost"}\n')
+    before = out.read_bytes()
+    with pytest.raises(SystemExit):  # a file without a vs_smax summary: one line, the figure untouched
+        speed_figure.main([str(other), "--out", str(out)])
+    assert out.read_bytes() == before
+    with pytest.raises(SystemExit):  # an unreadable file
+        speed_figure.main([str(tmp_path / "missing.json"), "--out", str(out)])

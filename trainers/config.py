@@ -70,8 +70,10 @@ class Config:
             The trained team's ``TeamPolicy`` plays every content with the same senses.
     """
 
+    # rollout
     n_arenas: int = 256
     n_steps: int = 32
+    # optimisation (PPO with the POCA baseline)
     n_minibatches: int = 4
     update_epochs: int = 3
     lr: float = 3e-4
@@ -83,22 +85,25 @@ class Config:
     clip_eps: float = 0.2
     ent_coef: float = 0.01
     anneal_ent: bool = False
+    # networks
     hidden: int = 64
     layers: int = 2
     heads: int = 4
     proj_attention: bool = True
     bf16: bool = False
+    # content and team
     skill_ranges: tuple[float, ...] = (13.0,)
     content_box: bool = False
     players: tuple[str, ...] = ("mage", "mage", "mage")
     parameters: tuple[str, ...] = ()
     redraw_every: int = 2
+    senses: str = "raidjax"
+    # run length, checkpoints and the final evaluation
     total_steps: int = 1_000_000
     updates_per_chunk: int = 10
     checkpoint_every: int = 50
     eval_games: int = 500
     deterministic_eval: bool = False
-    senses: str = "raidjax"
 
     @property
     def decisions_per_update(self) -> int:

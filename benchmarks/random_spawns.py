@@ -1,6 +1,7 @@
 """What ``EnvConfig(random_spawns=True)`` does to the game's balance: PT-HR's win rate on the
 reference content with the fixed spawns and with random ones, per skill range, the same games
-per cell and the same keys (``raidjax.playtest`` with its default chaining). Prints one JSON
+per cell and the same keys, chained as the calibration plays them (``auto_games_per_arena``: the
+arenas play up to 10 measured games in a row after a warm-up game). Prints one JSON
 object; the 95 % interval of each rate is the normal approximation.
 
     python benchmarks/random_spawns.py --ranges 5 13 --games 2000
@@ -18,6 +19,7 @@ import numpy as np
 
 import raidjax
 from raidjax.io import machine, run_cli, whole_number_arg
+from raidjax.playtest import auto_games_per_arena
 
 
 def main() -> None:
@@ -31,7 +33,8 @@ def main() -> None:
     for r in args.ranges:
         for spawns in (False, True):
             params = raidjax.make_params(skill_range=r, config=raidjax.EnvConfig(random_spawns=spawns))
-            res = raidjax.playtest(jax.random.key(args.seed), params, raidjax.policies.heuristic, args.games)
+            res = raidjax.playtest(jax.random.key(args.seed), params, raidjax.policies.heuristic, args.games,
+                                   games_per_arena=auto_games_per_arena(args.games))
             p = float(np.mean(np.asarray(res["outcome"]) == raidjax.types.WIN))
             half = 1.96 * math.sqrt(p * (1 - p) / args.games)
             cells.append({"range": r, "random_spawns": spawns, "win_rate": round(p, 4),

@@ -40,7 +40,8 @@ def main() -> None:
             cells.append({"range": r, "random_spawns": spawns, "win_rate": round(p, 4),
                           "ci95": [round(p - half, 4), round(p + half, 4)]})
     print(json.dumps({"benchmark": "random_spawns", "machine": machine(load=True), "policy": "PT-HR",
-                      "games_per_cell": args.games, "seed": args.seed, "cells": cells,
+                      "games_per_cell": args.games, "games_per_arena": auto_games_per_arena(args.games),
+                      "seed": args.seed, "cells": cells,
                       "seconds": round(time.perf_counter() - t0, 1)}))
 
 

@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # Every CPU speed table of docs/RESULTS.md ("Speed") in one job, each row appended to
-# OUT/cpu_speed.jsonl as it is printed (machine, date, commit and load average in every row):
+# OUT/cpu_speed.jsonl as it is printed (one object per benchmark, each with its machine, date,
+# commit and load average; vs_smax's per-environment progress lines are left out):
 # raidjax beside SMAX-3m at 4 096 arenas with 5 and 1 sub-steps (vs_smax.py), the rollout with
 # observations and the PT-HR playtest at 1 / 8 / 32 games per arena (env_throughput.py), where a
 # decision's time goes (step_profile.py), the XLA cost of one sub-step with either observation
 # (step_cost.py), the MA-POCA learner's update (train_throughput.py) and the README's first command.
 #
-#     bash benchmarks/cpu_speed.sh OUT     # about 15 min on 2 cores; needs jaxmarl (pip install -e ".[jaxmarl]")
+#     bash benchmarks/cpu_speed.sh OUT     # about 20 min on 2 cores; needs jaxmarl (pip install -e ".[jaxmarl]")
 set -u
 out=${1:?usage: bash benchmarks/cpu_speed.sh OUT}
 mkdir -p "$out"
@@ -14,7 +15,7 @@ export PYTHONUNBUFFERED=1 PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
 py=${PYTHON:-python3}
 run() {  # run ARGS...: one benchmark, JSON lines to the jsonl, everything else to the log
     echo "## $*" >>"$out/cpu_speed.log"
-    $py "$@" 2>>"$out/cpu_speed.log" | tee -a "$out/cpu_speed.jsonl"
+    $py "$@" 2>>"$out/cpu_speed.log" | grep --line-buffered '^{"benchmark"' | tee -a "$out/cpu_speed.jsonl"
 }
 for s in 5 1; do
     run benchmarks/vs_smax.py --arenas 4096 --steps 64 --substeps $s
@@ -38,4 +39,4 @@ t = time.perf_counter()
 subprocess.run([sys.executable, '-m', 'raidjax.calibrate', '--games', '1000'], check=True, stdout=subprocess.DEVNULL)
 print(json.dumps({'benchmark': 'first_command', 'command': 'python -m raidjax.calibrate --games 1000',
                   'seconds': round(time.perf_counter() - t, 1), 'machine': machine(load=True)}))
-" 2>>"$out/cpu_speed.log" | tee -a "$out/cpu_speed.jsonl"
+" 2>>"$out/cpu_speed.log" | grep --line-buffered '^{"benchmark"' | tee -a "$out/cpu_speed.jsonl"

@@ -17,7 +17,7 @@ $py -c "import jax; print('jax', jax.__version__, jax.devices())" 2>&1 | tee -a 
 run() {  # run SECONDS ARGS...: one benchmark, JSON lines to the jsonl, everything to the log
     local limit=$1; shift
     echo "## $* (limit ${limit}s)" >>"$out/gpu_speed.log"
-    timeout "$limit" $py "$@" 2>>"$out/gpu_speed.log" | tee -a "$out/gpu_speed.jsonl"
+    timeout "$limit" $py "$@" 2>>"$out/gpu_speed.log" | grep --line-buffered '^{"benchmark"' | tee -a "$out/gpu_speed.jsonl"
 }
 sizes=${ARENAS:-4096 65536 262144}
 run 200 benchmarks/vs_smax.py --arenas $sizes --steps 64 --repeats 2 --rows smax-3m raidjax-per-arena

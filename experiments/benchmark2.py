@@ -104,7 +104,7 @@ SCALES = {
     # N = 50 games per training measurement) trained for 10 240 generator steps (paper: 20 000 per
     # model, one model per target and seed), 3 episodes per target and method (paper: 5 000 skills per
     # target, 300 kept), in 3 parts. Measured stages on that CPU (2026-11-26, RESULTS): training
-    # 1 h 24 min (~113 games/s: 32 episodes x 50 games are too few arenas to fill its vectors), a
+    # 1 h 24 min (~100 games/s: 32 episodes x 50 games are too few arenas to fill its vectors), a
     # generation part (252 000 games) 27-36 min, so about 2 h 55 min in all, at the edge of the 3 h
     # it is sized for; the results page's run used --episodes 6 (6 parts).
     # Part i's key does not depend on the number of parts, so --episodes 6 extends a 3-episode run.

@@ -75,7 +75,7 @@ def test_quickstart(monkeypatch):
 def test_balancing_sweep(monkeypatch):
     nb = execute("balancing_sweep.ipynb", monkeypatch)
     assert "4 ranges x 4 cool times = 16 contents" in output_text(nb)
-    assert "saved balance_map.png in a temporary folder" in output_text(nb)  # docs/img/ only at full size
+    assert "saved balance_map.png and win_rate.json in a temporary folder" in output_text(nb)  # docs/ only at full size
     assert has_image(nb, "image/png")
 
 

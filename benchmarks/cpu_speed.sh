@@ -32,11 +32,11 @@ for o in raidjax reference; do
 done
 run benchmarks/train_throughput.py --presets cpu --pieces
 # The README's first command (compiles included), as a whole process.
-$py -c "
+run -c "
 import json, subprocess, sys, time
 from raidjax.io import machine
 t = time.perf_counter()
 subprocess.run([sys.executable, '-m', 'raidjax.calibrate', '--games', '1000'], check=True, stdout=subprocess.DEVNULL)
 print(json.dumps({'benchmark': 'first_command', 'command': 'python -m raidjax.calibrate --games 1000',
                   'seconds': round(time.perf_counter() - t, 1), 'machine': machine(load=True)}))
-" 2>>"$out/cpu_speed.log" | grep --line-buffered '^{"benchmark"' | tee -a "$out/cpu_speed.jsonl"
+"

@@ -2,7 +2,8 @@
 sub-step, and the fusions, copies and loops of the compiled decision.
 
 The sub-step figures come from XLA's cost analysis of a program that runs exactly one sub-step
-(``raidjax.env.substep``, vmapped over ``--arenas`` arenas); they are divided by the arena count,
+(``raidjax.env.substep`` in the lane layout, ``raidjax.lanes``, as ``env.advance`` runs it, vmapped
+over ``--arenas`` arenas; the state's moves into and out of the layout included); they are divided by the arena count,
 never derived from the decision's program (XLA counts a loop body once, so a 5-sub-step decision
 "as counted" looks like one sub-step). On an accelerator the bytes bound the speed, so this
 CPU-only figure shows what a GPU will do. The decision's program is ``vmap(raidjax.step)``;
@@ -24,10 +25,11 @@ import jax.numpy as jnp
 from env_throughput import arenas
 
 import raidjax
-from raidjax import combat
+from raidjax import combat, lanes
 from raidjax.env import substep
 from raidjax.io import machine
 from raidjax.types import TICKS_PER_DECISION
+from raidjax.utils import dice_seeds
 
 
 def cost(compiled) -> dict:
@@ -57,8 +59,15 @@ def main() -> None:
     actions = jnp.full((args.arenas, state.pos.shape[1] - 1), raidjax.ACTION_HEURISTIC, jnp.int32)
     n_ticks = TICKS_PER_DECISION // args.substeps
 
+    def lane_substep(seeds, state, actions, params, table):  # one sub-step as ``env.advance`` runs it
+        first = seeds.reshape(-1)[0]
+        with lanes.gate(first != first + 1):
+            return substep(seeds, state, actions, params, table, n_ticks)
+
+    program = lanes.batched(lane_substep, full=(1,))
+
     def one_substep(key, state, actions, params):
-        return substep(key, state, actions, params, combat.effect_table(params), n_ticks)
+        return program(dice_seeds(key), state.replace(memory=None), actions, params, combat.effect_table(params))
 
     sub = jax.jit(jax.vmap(one_substep)).lower(keys, state, actions, batch).compile()
     table = jax.jit(jax.vmap(combat.effect_table)).lower(batch).compile()

@@ -5,7 +5,8 @@ the dragon's 2.25 x 2.25 (``Prefabs/Agent/Enemy.prefab``), and both turn with th
 ``radius`` stat is half its side. A projectile of radius ``r`` touches a body when its centre is
 within ``r`` of the square: 0.7 from a player's centre in front, up to 0.91 towards a corner.
 
-Shapes: ``M`` projectiles, ``U`` units; vectors are ``float32[..., 2]``.
+Vectors are pairs of lane arrays ``(x, y)`` (``raidjax.lanes``): every function is elementwise, so
+shapes are any that broadcast (e.g. ``[M, U, ...]`` projectile-unit pairs with ``half[U, ...]``).
 """
 
 from __future__ import annotations
@@ -15,54 +16,56 @@ import jax.numpy as jnp
 INF = jnp.inf
 
 
-def to_body_frame(vec: jnp.ndarray, heading: jnp.ndarray) -> jnp.ndarray:
-    """``vec[..., 2]`` (world axes) in the frames whose x axis is along ``heading[...]`` (broadcast
-    against ``vec[..., 0]``; e.g. ``vec[M, U, 2]`` with every unit's ``heading[U]``)."""
-    c, s = jnp.cos(heading), jnp.sin(heading)
-    return jnp.stack([c * vec[..., 0] + s * vec[..., 1], -s * vec[..., 0] + c * vec[..., 1]], axis=-1)
+def to_body_frame(x: jnp.ndarray, y: jnp.ndarray, c: jnp.ndarray, s: jnp.ndarray) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """The world vector ``(x, y)`` in the frame whose x axis is along a heading of cosine ``c`` and
+    sine ``s`` (all broadcast; the caller computes them once per unit)."""
+    return c * x + s * y, -s * x + c * y
 
 
-def box_distance(q: jnp.ndarray, half: jnp.ndarray) -> jnp.ndarray:
-    """Distance ``float32[...]`` from points ``q[..., 2]`` (body frame) to squares of half side ``half``
-    (broadcast against ``q[..., 0]``; e.g. ``q[M, U, 2]`` and ``half[U]``)."""
-    return jnp.linalg.norm(jnp.maximum(jnp.abs(q) - half[..., None], 0.0), axis=-1)
+def box_distance(qx: jnp.ndarray, qy: jnp.ndarray, half: jnp.ndarray) -> jnp.ndarray:
+    """Distance from the point ``(qx, qy)`` (body frame) to the square of half side ``half``."""
+    ex, ey = jnp.maximum(jnp.abs(qx) - half, 0.0), jnp.maximum(jnp.abs(qy) - half, 0.0)
+    return jnp.sqrt(ex * ex + ey * ey)
 
 
-def _slab(q, d, ext):
-    """Entry and exit ``t`` of the ray ``q + t d`` through the box ``|x| <= ext[..., 0], |y| <= ext[..., 1]``."""
+def _slab_axis(q, d, ext):
+    """Entry and exit ``t`` of the line ``q + t d`` through the slab ``|x| <= ext`` (one axis)."""
     safe = jnp.where(jnp.abs(d) < 1e-9, 1e-9, d)
-    t1, t2 = (-ext - q) / safe, (ext - q) / safe
-    lo, hi = jnp.minimum(t1, t2), jnp.maximum(t1, t2)
+    # min / max of (-ext - q) / safe and (ext - q) / safe, picked by the sign of ``safe`` (division is
+    # monotone, so the values are the same): each division then has one use, and XLA fuses the test.
+    ahead = safe > 0
+    lo, hi = (jnp.where(ahead, -ext, ext) - q) / safe, (jnp.where(ahead, ext, -ext) - q) / safe
     still = jnp.abs(d) < 1e-9  # parallel to that axis: inside the slab forever, or never
     inside = jnp.abs(q) <= ext
-    lo = jnp.where(still, jnp.where(inside, -INF, INF), lo)
-    hi = jnp.where(still, jnp.where(inside, INF, -INF), hi)
-    enter, leave = jnp.max(lo, axis=-1), jnp.min(hi, axis=-1)
+    return jnp.where(still, jnp.where(inside, -INF, INF), lo), jnp.where(still, jnp.where(inside, INF, -INF), hi)
+
+
+def _slab(qx, qy, dx, dy, ex, ey):
+    """Entry ``t >= 0`` of the ray ``q + t d`` into the box ``|x| <= ex, |y| <= ey``, ``inf`` if never."""
+    lo_x, hi_x = _slab_axis(qx, dx, ex)
+    lo_y, hi_y = _slab_axis(qy, dy, ey)
+    enter, leave = jnp.maximum(lo_x, lo_y), jnp.minimum(hi_x, hi_y)
     return jnp.where((enter <= leave) & (leave >= 0), jnp.maximum(enter, 0.0), INF)
 
 
-def _circle(q, d, centre, r):
-    """First ``t >= 0`` at which the ray ``q + t d`` (``|d| = 1``) is within ``r`` of ``centre``."""
-    rel = centre - q
-    along = jnp.sum(rel * d, axis=-1)
-    c = jnp.sum(rel * rel, axis=-1) - r**2
+def _circle(qx, qy, dx, dy, cx, cy, r):
+    """First ``t >= 0`` at which the ray ``q + t d`` (``|d| = 1``) is within ``r`` of ``(cx, cy)``."""
+    rx, ry = cx - qx, cy - qy
+    along = rx * dx + ry * dy
+    c = (rx * rx + ry * ry) - r**2
     disc = along**2 - c
     t = along - jnp.sqrt(jnp.maximum(disc, 0.0))
     return jnp.where(c <= 0, 0.0, jnp.where((disc >= 0) & (t >= 0), t, INF))
 
 
-def ray_entry(q: jnp.ndarray, d: jnp.ndarray, half: jnp.ndarray, r: jnp.ndarray) -> jnp.ndarray:
-    """First ``t >= 0`` at which a disc of radius ``r[M]`` moving from ``q`` along unit vector ``d``
-    (``float32[M, U, 2]``, body frame) touches the square of half side ``half[U]``; ``inf`` if never.
+def ray_entry(qx, qy, dx, dy, half, r) -> jnp.ndarray:
+    """First ``t >= 0`` at which a disc of radius ``r`` moving from ``(qx, qy)`` along the unit vector
+    ``(dx, dy)`` (body frame) touches the square of half side ``half``; ``inf`` if never.
 
     The touching region is the square grown by ``r``: two slabs and four corner discs.
     """
-    a = jnp.broadcast_to(half[None, :], q.shape[:-1])[..., None]
-    rr = jnp.broadcast_to(r[:, None], q.shape[:-1])
-    t = jnp.minimum(_slab(q, d, jnp.concatenate([a + rr[..., None], a], -1)),
-                    _slab(q, d, jnp.concatenate([a, a + rr[..., None]], -1)))
+    t = jnp.minimum(_slab(qx, qy, dx, dy, half + r, half), _slab(qx, qy, dx, dy, half, half + r))
     for sx in (-1.0, 1.0):
         for sy in (-1.0, 1.0):
-            corner = jnp.concatenate([sx * a, sy * a], -1)
-            t = jnp.minimum(t, _circle(q, d, corner, rr))
+            t = jnp.minimum(t, _circle(qx, qy, dx, dy, sx * half, sy * half, r))
     return t

@@ -1,16 +1,18 @@
-"""Casting, cooldowns/charges/mana, the projectile pool and damage (GAME.md §5–§6), one arena.
+"""Casting, cooldowns/charges/mana, the projectile pool and damage (GAME.md §5–§6).
 
-Shapes: ``U`` units (boss last), ``S`` skill slots, ``M`` projectile slots,
-``E = M + U*S + U`` hit events per sub-step (projectiles, instant skills, basic attacks).
+Lane functions (``raidjax.lanes``): shapes are one arena's, followed by any number of lane (batch)
+axes. ``U`` units (boss last), ``S`` skill slots, ``M`` projectile slots, ``E = M + U*S + U`` hit
+events per sub-step (projectiles, instant skills, basic attacks).
 """
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
+import numpy as np
 
 from raidjax import collide
-from raidjax.movement import heading_vec, nearest_alive_player
+from raidjax.lanes import any_, argmin, cumsum, first_true, materialize, one_hot, pick, total
+from raidjax.movement import nearest_alive_player, norm, set_boss
 from raidjax.types import (
     HALF_ARENA,
     HIT_ATTACK,
@@ -25,7 +27,7 @@ from raidjax.types import (
     Projectiles,
     State,
 )
-from raidjax.utils import contract, pick, uniform_dice
+from raidjax.utils import hash_dice
 
 AREA_LIFETIME = 5 * TICK  # an area lingers 5 ticks
 MISSILE_LIFETIME = 10.0  # safety net: missiles expire after 10 s
@@ -39,44 +41,43 @@ TIME_EPS = 2e-3
 
 
 def haste_factor(params: Params) -> jnp.ndarray:
-    """``float32[U, 1]``: cast and cool times are divided by this (1 + haste/100)."""
+    """``float32[U, 1, ...]``: cast and cool times are divided by this (1 + haste/100)."""
     return (1.0 + params.stats.haste / 100.0)[:, None]
 
 
 def skill_targets(state: State, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
-    """Target and validity of every skill slot: ``(int32[U, S], bool[U, S])``.
+    """Target and validity of every skill slot: ``(int32[U, S, ...], bool[U, S, ...])``.
 
     Enemy-affecting skills aim at the unit's enemy target (players: the boss; the boss: its
     current target). Ally-only skills aim at the alive ally (self included) with the lowest HP
     fraction within range. Valid means alive and within range (centre distance).
     """
     sk = params.skills
-    dist = jnp.linalg.norm(state.pos[:, None] - state.pos[None], axis=-1)  # [U, U]
-    enemy_t = state.target  # [U]
-    t_oh = jax.nn.one_hot(enemy_t, dist.shape[0], dtype=bool)
-    enemy_d = jnp.sum(jnp.where(t_oh, dist, 0.0), axis=1, keepdims=True)  # [U, 1]
+    dist = norm(state.pos[:, None] - state.pos[None], axis=2)  # [U, U, ...], symmetric
+    enemy_t = state.target  # [U, ...]
+    enemy_d = pick(dist, enemy_t)  # dist[target[u], u] = dist[u, target[u]]
     # keep_dead_target: the reference boss casts at its target even after it died.
-    t_alive = jnp.any(t_oh & state.alive[None], axis=1) | params.config.keep_dead_target
-    enemy_ok = t_alive[:, None] & (enemy_d <= sk.range)
+    t_alive = pick(state.alive, enemy_t) | params.config.keep_dead_target
+    enemy_ok = t_alive[:, None] & (enemy_d[:, None] <= sk.range)
     same = params.team[:, None] == params.team[None]
     frac = state.hp / jnp.maximum(params.stats.max_hp, 1.0)
-    cand = (same & state.alive[None])[:, None, :] & (dist[:, None, :] <= sk.range[..., None])  # [U,S,U]
-    ally_t = jnp.argmin(jnp.where(cand, frac[None, None], jnp.inf), axis=-1).astype(jnp.int32)
-    ally_ok = jnp.any(cand, axis=-1)
+    cand = (same & state.alive[None])[:, None] & (dist[:, None] <= sk.range[:, :, None])  # [U, S, U, ...]
+    ally_t = argmin(jnp.where(cand, frac[None, None], jnp.inf), axis=2)
+    ally_ok = any_(cand, axis=2)
     ally_only = (sk.affect_enemy == 0) & (sk.affect_ally > 0)
     target = jnp.where(ally_only, ally_t, enemy_t[:, None])
     return target, jnp.where(ally_only, ally_ok, enemy_ok)
 
 
 def usable_slot(state: State, params: Params, valid: jnp.ndarray, s: int) -> jnp.ndarray:
-    """``bool[U]``: can slot ``s`` start a cast now (GAME.md §5, with the casting/channeling rules)?
+    """``bool[U, ...]``: can slot ``s`` start a cast now (GAME.md §5, with the casting/channeling rules)?
 
     A cast of a skill with ``cast_on_moving = 0`` is a *channel*; other casts are plain casts.
     """
     sk = params.skills
     on_moving = sk.cast_on_moving > 0
-    busy_cast = jnp.any(state.casting & on_moving, axis=-1)
-    busy_channel = jnp.any(state.casting & ~on_moving, axis=-1)
+    busy_cast = any_(state.casting & on_moving, axis=1)
+    busy_channel = any_(state.casting & ~on_moving, axis=1)
     return (
         state.alive
         & (sk.in_use[:, s] > 0)
@@ -91,7 +92,7 @@ def usable_slot(state: State, params: Params, valid: jnp.ndarray, s: int) -> jnp
 
 
 def start_casts(state: State, params: Params, requested: jnp.ndarray) -> State:
-    """Start the requested casts (``bool[U, S]``) that are usable, slot by slot in order.
+    """Start the requested casts (``bool[U, S, ...]``) that are usable, slot by slot in order.
 
     Slot order makes "try attack 1, then attack 2" (the boss) and "cast every usable skill"
     (PT-HR) respect the cast-on-casting rule. Moving casters cancel their channels first.
@@ -123,7 +124,7 @@ def expired(left: jnp.ndarray, params: Params) -> jnp.ndarray:
 def advance_casts(state: State, params: Params, n_ticks: int) -> tuple[State, jnp.ndarray]:
     """Count casts and cooldowns down tick by tick; the casts that complete fire.
 
-    Returns the state and ``fired: int32[U, S]``, the tick (1..n_ticks) of this sub-step in which
+    Returns the state and ``fired: int32[U, S, ...]``, the tick (1..n_ticks) of this sub-step in which
     each slot's cast completed, 0 where none did.
 
     Firing pays mana and uses a charge; it starts a cooldown only if none is running for the
@@ -150,7 +151,7 @@ def advance_casts(state: State, params: Params, n_ticks: int) -> tuple[State, jn
             ok = done[:, s] & (mana >= sk.cost[:, s])
             mana = mana - jnp.where(ok, sk.cost[:, s], 0.0)
             paid.append(ok)
-        now = jnp.stack(paid, axis=-1)
+        now = jnp.stack(paid, axis=1)
         casting = casting & ~done
         # Running cooldowns tick; one that ends adds its charge and starts over if still short.
         recharge = jnp.where(recharging, recharge - tick, recharge)
@@ -187,53 +188,58 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
     """Deliver fired skills: spawn missiles/areas into the pool, return instant hits.
 
     Args:
-        fired_tick: ``int32[U, S]`` from ``advance_casts`` (tick of the sub-step a cast completed, or 0).
+        fired_tick: ``int32[U, S, ...]`` from ``advance_casts`` (tick of the sub-step a cast completed, or 0).
         n_ticks: ticks in this sub-step.
 
-    Returns ``(state, instant_hits: bool[U*S, U], instant_from: float32[U*S, 2], flight: float32[M])``
-    where ``flight`` is how long each pool slot flies in this sub-step: the whole sub-step, or, for
-    a projectile spawned now, the ticks after the one it was fired in (the reference spawns in the
-    end-of-tick coroutine phase; a projectile first moves and collides in the next tick).
-    The boss re-picks its target (nearest alive player) as its skills fire; straight missiles
-    keep the facing the caster had.
+    Returns ``(state, instant_hits, instant_from: float32[U*S, 2, ...], flight: float32[M, ...])``
+    where ``instant_hits = (hit: bool[U*S, ...], unit: int32[U*S, ...])`` (an instant skill hits its
+    target) and ``flight`` is how long each pool slot flies in this sub-step: the whole
+    sub-step, or, for a projectile spawned now, the ticks after the one it was fired in (the
+    reference spawns in the end-of-tick coroutine phase; a projectile first moves and collides in
+    the next tick). The boss re-picks its target (nearest alive player) as its skills fire;
+    straight missiles keep the facing the caster had.
     """
     fired = fired_tick > 0
-    u_n, s_n = fired.shape
+    u_n, s_n = fired.shape[:2]
+    lanes = fired.shape[2:]
     b = u_n - 1
     # Straight missiles fly along the facing the caster had while casting (the boss faced its
     # old target); the re-picked target matters for homing, instant and area delivery.
-    direction = jnp.broadcast_to(heading_vec(state.heading)[:, None], (u_n, s_n, 2))
-    new_t = jnp.where(jnp.any(fired[b]), nearest_alive_player(state), state.target[b])
-    to_t = pick(state.pos, new_t) - state.pos[b]
-    face = jnp.where(jnp.any(fired[b]) & state.alive[b], jnp.arctan2(to_t[1], to_t[0]), state.heading[b])
-    state = state.replace(target=state.target.at[b].set(new_t), heading=state.heading.at[b].set(face))
+    facing = materialize(jnp.stack([jnp.cos(state.heading), jnp.sin(state.heading)], axis=1))
+    direction = jnp.broadcast_to(facing[:, None], (u_n, s_n, 2) + lanes)
+    boss_fired = any_(fired[b])
+    new_t = jnp.where(boss_fired, nearest_alive_player(state), state.target[b])
+    to_t = pick(state.pos, new_t[None]) - state.pos[b]
+    face = jnp.where(boss_fired & state.alive[b], jnp.arctan2(to_t[1], to_t[0]), state.heading[b])
+    state = state.replace(target=set_boss(state.target, new_t), heading=set_boss(state.heading, face))
 
     sk = params.skills
     target, _ = skill_targets(state, params)
     region = sk.target_type == TARGET_REGION
     instant = ~region & (sk.projectile_speed <= 0)
     kind = jnp.where(region, PROJ_AREA, jnp.where(sk.target_type == TARGET_UNIT, PROJ_HOMING, PROJ_STRAIGHT))
-    caster = jnp.broadcast_to(state.pos[:, None], (u_n, s_n, 2))
-    tpos = pick(state.pos, target)
-    spawn_pos = jnp.where(region[..., None], caster + sk.area_offset[..., None] * (tpos - caster), caster)
+    caster = jnp.broadcast_to(state.pos[:, None], (u_n, s_n, 2) + lanes)
+    tpos = pick(state.pos, target[:, :, None])
+    spawn_pos = jnp.where(region[:, :, None], caster + sk.area_offset[:, :, None] * (tpos - caster), caster)
 
     r = u_n * s_n
-    req = (fired & ~instant).reshape(r)
+    req = (fired & ~instant).reshape((r,) + lanes)
     p = state.projectiles
     free = ~p.live
-    req_rank = jnp.where(req, jnp.cumsum(req) - 1, -1)
-    free_rank = jnp.where(free, jnp.cumsum(free) - 1, -2)
-    assign = req_rank[:, None] == free_rank[None]  # [R, M]: request r goes to pool slot m
-    got = jnp.any(assign, axis=0)
-    src = jnp.argmax(assign, axis=0)  # [M] request feeding each slot
-    owner = jnp.broadcast_to(jnp.arange(u_n)[:, None], (u_n, s_n))
-    slot = jnp.broadcast_to(jnp.arange(s_n)[None], (u_n, s_n))
+    req_rank = jnp.where(req, cumsum(req) - 1, -1)
+    free_rank = jnp.where(free, cumsum(free) - 1, -2)
+    assign = materialize(req_rank[:, None] == free_rank[None])  # [R, M, ...]: request r -> slot m
+    got = any_(assign)
+    src = first_true(assign)  # [M, ...] request feeding each slot
+    unit_ids = jnp.arange(u_n).reshape((u_n, 1) + (1,) * len(lanes))
+    slot_ids = jnp.arange(s_n).reshape((1, s_n) + (1,) * len(lanes))
     area_life = TICK if params.config.one_step_area else AREA_LIFETIME
-    life = jnp.where(region, area_life, MISSILE_LIFETIME)
-    # One packed gather instead of one scatter per field: [R, 10] -> [M, 10].
-    cols = jnp.stack([kind, owner, slot, target, fired_tick], -1).astype(jnp.float32)
-    packed = jnp.concatenate([spawn_pos, direction, cols, life[..., None]], axis=-1).reshape(r, 10)
-    new = jnp.take(packed, src, axis=0)
+    life = jnp.broadcast_to(jnp.where(region, area_life, MISSILE_LIFETIME), fired.shape)
+    # One packed pick instead of one per field: [R, 10, ...] -> [M, 10, ...].
+    cols = [kind, unit_ids, slot_ids, target, fired_tick]
+    cols = jnp.stack([jnp.broadcast_to(c, fired.shape).astype(jnp.float32) for c in cols], axis=2)
+    packed = jnp.concatenate([spawn_pos, direction, cols, life[:, :, None]], axis=2).reshape((r, 10) + lanes)
+    new = materialize(pick(packed, src[:, None]))
     g = got[:, None]
     as_int = lambda x: jnp.round(x).astype(jnp.int32)  # noqa: E731
     proj = Projectiles(
@@ -247,13 +253,13 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
         life=jnp.where(got, new[:, 9], p.life),
         hit_mask=p.hit_mask & ~g,
     )
-    dropped = jnp.sum(req) - jnp.sum(got)
-    inst = (fired & instant).reshape(r)
-    instant_hits = inst[:, None] & jax.nn.one_hot(target.reshape(r), u_n, dtype=bool)
-    instant_hits = instant_hits & state.alive[None]
+    dropped = total(req) - total(got)
+    inst = (fired & instant).reshape((r,) + lanes)
+    inst_target = target.reshape((r,) + lanes)
+    instant_hits = (inst & pick(state.alive, inst_target), inst_target)
     flight = jnp.where(got, n_ticks - new[:, 8], n_ticks) * TICK
     state = state.replace(projectiles=proj, dropped=state.dropped + dropped)
-    return state, instant_hits, caster.reshape(r, 2), flight
+    return state, instant_hits, caster.reshape((r, 2) + lanes), flight
 
 
 # Columns of the per-source effect table (``effect_table``).
@@ -262,10 +268,10 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
 
 
 def effect_table(params: Params) -> jnp.ndarray:
-    """Everything a hit needs to know about its source, ``float32[U * (S + 1), 13]``.
+    """Everything a hit needs to know about its source, ``float32[U * (S + 1), 13]`` (one arena's
+    ``params``, no lanes: ``raidjax.env`` builds it once per decision).
 
     Row ``u * (S + 1) + s`` is unit u's skill slot s; row ``u * (S + 1) + S`` its basic attack.
-    Events look their source up with one contraction (``utils.pick``) instead of many gathers.
     """
     sk, st = params.skills, params.stats
     u_n, s_n = sk.coefficient.shape
@@ -299,137 +305,206 @@ def source_index(owner: jnp.ndarray, slot: jnp.ndarray, n_slots: int) -> jnp.nda
     return owner * (n_slots + 1) + slot
 
 
+def event_sources(table: jnp.ndarray, proj: Projectiles, n_slots: int):
+    """Source features ``float32[n, 13, ...]`` and owners ``int32[n, ...]`` of the three groups of a
+    sub-step's hit events: the pool's ``M`` slots, every unit's ``S`` skill slots (instant skills),
+    every unit's basic attack. ``table``: ``effect_table`` rows with lanes, ``float32[U * (S + 1), 13, ...]``.
+
+    Returns ``((pool_feats, pool_owner), (skill_feats, skill_owner), (basic_feats, basic_owner))``.
+    """
+    lanes = proj.owner.shape[1:]
+    rows = table.reshape((-1, n_slots + 1) + table.shape[1:])  # [U, S + 1, 13, ...]
+    u_n = rows.shape[0]
+    # Materialised: every column is read by several consumers, which would each redo the pick.
+    pool = materialize(pick(table, source_index(proj.owner, proj.slot, n_slots)[:, None]))
+    units = jnp.arange(u_n, dtype=jnp.int32).reshape((u_n,) + (1,) * len(lanes))
+    skills = rows[:, :n_slots].reshape((u_n * n_slots,) + table.shape[1:])
+    return ((pool, proj.owner), (skills, jnp.repeat(units, n_slots, axis=0)), (rows[:, n_slots], units))
+
+
 def touchable(feats: jnp.ndarray, params: Params, alive: jnp.ndarray) -> jnp.ndarray:
-    """``bool[E, U]``: alive units an effect with source features ``feats[E, 13]`` can touch."""
+    """``bool[E, U, ...]``: alive units an effect with source features ``feats[E, 13, ...]`` can touch."""
     same = feats[:, F_TEAM, None] == params.team[None].astype(jnp.float32)
     return ((feats[:, F_ENEMY, None] > 0) & ~same | (feats[:, F_ALLY, None] > 0) & same) & alive[None]
 
 
-def move_projectiles(state: State, params: Params, table: jnp.ndarray, flight: jnp.ndarray):
+def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: jnp.ndarray):
     """Advance the pool one sub-step with swept collision; slot m flies ``flight[m]`` seconds
     (``fire``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
-    hits before the next).
+    hits before the next). ``feats``: the pool's source features, ``float32[M, 13, ...]``.
 
-    Returns ``(state, hits: bool[M, U], from_pos: float32[M, 2])`` where ``from_pos`` is the
-    projectile's position before the move (the direction a hit comes from).
+    Returns ``(state, hits, from_pos: float32[M, 2, ...])`` where ``from_pos`` is the projectile's
+    position before the move (the direction a hit comes from) and ``hits`` is ``bool[M, U, ...]``, or
+    under ``one_step_area``, when no slot can hit two units, ``(hit: bool[M, ...], unit: int32[M, ...])``.
     """
     p = state.projectiles
-    s_n = state.casting.shape[1]
     u_n = state.pos.shape[0]
-    feats = pick(table, source_index(p.owner, p.slot, s_n))  # [M, F]
     step = feats[:, F_SPEED] * flight
     flying = p.live & (flight > 0)
-    touch = touchable(feats, params, state.alive)  # [M, U]
+    touch = materialize(touchable(feats, params, state.alive))  # [M, U, ...]
     # Reference geometry (collide.py): bodies are squares of half side ``radius`` turning with
     # their heading; a projectile touches one within its own radius of the square.
     r_proj = feats[:, F_RADIUS]
     half = params.stats.radius
-    rel = state.pos[None] - p.pos[:, None]  # [M, U, 2]
-    dist = jnp.linalg.norm(rel, axis=-1)
-    t_oh = jax.nn.one_hot(p.target, u_n, dtype=bool)
-
-    def of_target(x):  # x[U, ...] -> x[target of each slot]: [M, ...] (a masked sum: no gather)
-        oh = t_oh.reshape(t_oh.shape + (1,) * (x.ndim - 1))
-        if x.dtype == jnp.bool_:
-            return jnp.any(oh & x[None], axis=1)
-        return jnp.sum(jnp.where(oh, x[None], 0), axis=1)
+    px, py = p.pos[:, 0], p.pos[:, 1]
+    ux, uy = state.pos[:, 0], state.pos[:, 1]
+    relx, rely = ux[None] - px[:, None], uy[None] - py[:, None]  # [M, U, ...]
+    dist = jnp.sqrt(relx * relx + rely * rely)
+    t_oh = one_hot(p.target, u_n, axis=1)
+    cos_h, sin_h = materialize((jnp.cos(state.heading), jnp.sin(state.heading)))  # [U, ...], read per pair
 
     # Homing: straight at the target's current position; hits only its target, once within reach
     # at the end of its move (it flies at the body's centre, so it cannot pass through it).
     # Only the target matters, so this is [M] work, not [M, U].
-    trel = of_target(state.pos) - p.pos
-    tdist = jnp.linalg.norm(trel, axis=-1)
-    t_alive = of_target(state.alive)
+    tx, ty = pick(ux, p.target), pick(uy, p.target)
+    trelx, trely = tx - px, ty - py
+    tdist = jnp.sqrt(trelx * trelx + trely * trely)
+    t_alive = pick(state.alive, p.target)
     homing = flying & (p.kind == PROJ_HOMING)
-    pos_h = p.pos + trel / jnp.maximum(tdist, EPS)[:, None] * jnp.minimum(step, tdist)[:, None]
-    t_heading = of_target(state.heading)
-    end_gap = collide.box_distance(collide.to_body_frame(pos_h - of_target(state.pos), t_heading), of_target(half))
+    inv, reach = jnp.maximum(tdist, EPS), jnp.minimum(step, tdist)
+    hx, hy = px + trelx / inv * reach, py + trely / inv * reach
+    qx, qy = collide.to_body_frame(hx - tx, hy - ty, pick(cos_h, p.target), pick(sin_h, p.target))
+    end_gap = collide.box_distance(qx, qy, pick(half, p.target))
     hit_h = homing & t_alive & (end_gap <= r_proj)
     hits_h = hit_h[:, None] & t_oh
 
     # Straight: first touched unit along the segment; walls destroy it.
-    q0 = collide.to_body_frame(-rel, state.heading)
-    d0 = collide.to_body_frame(jnp.broadcast_to(p.direction[:, None], rel.shape), state.heading)
-    t_in = collide.ray_entry(q0, d0, half, r_proj)
+    q0x, q0y = collide.to_body_frame(-relx, -rely, cos_h[None], sin_h[None])
+    dx, dy = p.direction[:, 0], p.direction[:, 1]
+    d0x, d0y = collide.to_body_frame(dx[:, None], dy[:, None], cos_h[None], sin_h[None])
+    t_in = collide.ray_entry(q0x, q0y, d0x, d0y, half[None], r_proj[:, None])
+    # Materialise the geometry once: XLA would otherwise recompute it inside every consumer.
+    t_in, dist, q0x, q0y = materialize((t_in, dist, q0x, q0y))
     cross = touch & (t_in <= step[:, None])
     straight = flying & (p.kind == PROJ_STRAIGHT)
-    first = jnp.argmin(jnp.where(cross, t_in, jnp.inf), axis=1)
-    hit_s = straight & jnp.any(cross, axis=1)
-    hits_s = hit_s[:, None] & jax.nn.one_hot(first, u_n, dtype=bool)
-    pos_s = p.pos + p.direction * step[:, None]
-    out = jnp.any(jnp.abs(pos_s) > HALF_ARENA, axis=-1)
+    first = argmin(jnp.where(cross, t_in, jnp.inf), axis=1)
+    hit_s = straight & any_(cross, axis=1)
+    hits_s = hit_s[:, None] & one_hot(first, u_n, axis=1)
+    sx, sy = px + dx * step, py + dy * step
+    out = (jnp.abs(sx) > HALF_ARENA) | (jnp.abs(sy) > HALF_ARENA)
 
     # Area: every touchable unit inside, nearest first, at most hit_count units in all.
     area = flying & (p.kind == PROJ_AREA)
-    gap = collide.box_distance(q0, half)
+    gap = collide.box_distance(q0x, q0y, half[None])
     inside = area[:, None] & touch & (gap <= r_proj[:, None]) & ~p.hit_mask
-    order = jnp.arange(u_n)
-    closer = (dist[:, None, :] < dist[:, :, None]) | (
-        (dist[:, None, :] == dist[:, :, None]) & (order[None, None] < order[None, :, None])
-    )
-    rank = jnp.sum(closer & inside[:, None, :], axis=-1)
+    rank = []
+    for u in range(u_n):  # how many inside units are nearer than u (ties: the lower index first)
+        nearer = [((dist[:, v] < dist[:, u]) | ((dist[:, v] == dist[:, u]) & (v < u))) & inside[:, v]
+                  for v in range(u_n)]
+        rank.append(sum(x.astype(jnp.int32) for x in nearer))
+    rank = jnp.stack(rank, axis=1)
     # one_step_area: the reference's slash is switched off by its first hit.
     cap = 1.0 if params.config.one_step_area else feats[:, F_HITS]
-    left = cap - jnp.sum(p.hit_mask, axis=1)
+    left = cap - total(p.hit_mask, axis=1)
     hits_a = inside & (rank < left[:, None])
-
-    hits = hits_h | hits_s | hits_a
-    pos = jnp.where(homing[:, None], pos_h, jnp.where(straight[:, None], pos_s, p.pos))
+    if params.config.one_step_area:
+        # Every kind hits at most one unit (an area its nearest inside): one target per slot.
+        area_first = argmin(jnp.where(inside, dist, jnp.inf), axis=1)
+        hit_a = area & any_(inside, axis=1)
+        hits_a = hit_a[:, None] & one_hot(area_first, u_n, axis=1)
+        hits = materialize((hit_h | hit_s | hit_a, jnp.where(homing, p.target, jnp.where(straight, first, area_first))))
+    else:
+        hits = materialize(hits_h | hits_s | hits_a)
+    new_x = jnp.where(homing, hx, jnp.where(straight, sx, px))
+    new_y = jnp.where(homing, hy, jnp.where(straight, sy, py))
     life = p.life - flight
     gone = (homing & (hit_h | ~t_alive)) | (straight & (hit_s | out)) | (life <= EPS)
-    new = p.replace(live=p.live & ~gone, pos=pos, life=life, hit_mask=p.hit_mask | hits_a)
+    new = p.replace(live=p.live & ~gone, pos=jnp.stack([new_x, new_y], axis=1), life=life,
+                    hit_mask=p.hit_mask | hits_a)
     return state.replace(projectiles=new), hits, p.pos
 
 
-def resolve_hits(key, state: State, params: Params, table: jnp.ndarray, hits, source, from_pos):
-    """Apply damage and heals of ``E`` hit events to the units.
+def resolve_hits(seeds, state: State, params: Params, groups):
+    """Apply damage and heals of a sub-step's hit events to the units.
+
+    The ``E`` events come in groups (the pool, instant skills, basic attacks) resolved one by one
+    with no concatenation; event ``e`` of the sub-step rolls dice ``(d * E + e) * U + u`` against unit u.
 
     Args:
-        key: PRNG key for crits, dodges and parries.
-        table: ``effect_table(params)``.
-        hits: ``bool[E, U]`` event e touches unit u.
-        source: ``int32[E]`` row of ``table`` (owner and slot, or the owner's basic attack).
-        from_pos: ``float32[E, 2]`` where the hit comes from (back-attack test).
+        seeds: ``uint32[2, ...]`` dice seeds (``utils.dice_seeds``) for crits, dodges and parries.
+        groups: a sequence of ``(feats, owner, hits, from_pos)``: ``float32[n, 13, ...]`` each event's
+            source features (``event_sources``), ``int32[n, ...]`` the unit it comes from, the units
+            it touches and ``float32[n, 2, ...]`` where it comes from (back attacks). ``hits`` is
+            ``bool[n, U, ...]``, or ``(hit: bool[n, ...], unit: int32[n, ...])`` for events that touch
+            at most one unit (only that unit's dice and damage are computed).
 
     Returns:
-        ``(state, dealt_to_boss: float32[U], back: int32[U])`` by owner.
+        ``(state, dealt_to_boss: float32[U, ...], back: int32[U, ...])`` by owner.
     """
     st = params.stats
-    e_n, u_n = hits.shape
-    oh_src = jax.nn.one_hot(source, table.shape[0], dtype=jnp.float32)  # [E, R]
-    f = jnp.take(table, source, axis=0)  # [E, F]
-    by_owner = oh_src.reshape(e_n, u_n, -1).sum(-1)  # [E, U]
+    u_n = state.hp.shape[0]
+    lanes = state.hp.shape[1:]
+    e_n = sum(g[0].shape[0] for g in groups)
+    # Per-unit columns ``[U, ...]`` a hit reads from the unit it touches.
+    unit_cols = {
+        "x": state.pos[:, 0], "y": state.pos[:, 1],
+        "back_x": -jnp.cos(state.heading), "back_y": -jnp.sin(state.heading),
+        "evasion": st.evasion, "agility": st.agility, "parry": st.parry,
+        "armor": (1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0),
+        "team": params.team.astype(jnp.float32),
+    }
+    unit_cols = materialize(unit_cols)  # tiny, and read by every event (cos and sin are dear)
+    damage_in, heal_in = 0.0, 0.0
+    dealt, dealt_to_boss, back_count = 0.0, 0.0, 0.0
+    offset = 0
+    for f, owner, hits, from_pos in groups:
+        n = f.shape[0]
+        base = (np.arange(3)[:, None] * e_n + offset + np.arange(n)[None]) * u_n  # [3, n]
+        offset += n
+        if isinstance(hits, tuple):  # one unit per event: [n, ...]
+            hit, unit = hits
+            col = {k: pick(v, unit) for k, v in unit_cols.items()}
+            index = jnp.asarray(base.reshape(base.shape + (1,) * len(lanes)), jnp.uint32) + unit.astype(jnp.uint32)
+            fc = lambda c, f=f: f[:, c]  # noqa: E731
+        else:  # every unit: [n, U, ...]
+            hit = hits
+            col = {k: v[None] for k, v in unit_cols.items()}
+            index = (base[:, :, None] + np.arange(u_n)).astype(np.uint32)
+            fc = lambda c, f=f: f[:, c, None]  # noqa: E731
+        dice = hash_dice(seeds, index)
+        crit = dice[0] < fc(F_CRIT)
+        relx = from_pos[:, 0] - col["x"] if hit is not hits else from_pos[:, 0, None] - col["x"]
+        rely = from_pos[:, 1] - col["y"] if hit is not hits else from_pos[:, 1, None] - col["y"]
+        length = jnp.maximum(jnp.sqrt(relx * relx + rely * rely), EPS)
+        back = (relx / length) * col["back_x"] + (rely / length) * col["back_y"] >= BACK_ATTACK_COS
+        evasion = col["evasion"] + 0.5 * (col["agility"] - fc(F_AGI))
+        dodge = dice[1] * 100.0 < evasion
+        parry = dice[2] * 100.0 < col["parry"]
+        mult = (
+            jnp.where(crit, fc(F_CRIT_MULT), 1.0)
+            * jnp.where(back, fc(F_BACK_MULT), 1.0)
+            * fc(F_VERS)
+            * col["armor"]
+            * jnp.where(parry, PARRY_FACTOR, 1.0)
+        )
+        enemy = fc(F_TEAM) != col["team"]
+        # Homing and instant hits land on their target whatever the flags: gate them here.
+        harm = hit & enemy & (fc(F_ENEMY) > 0) & ~dodge
+        healed = hit & ~enemy & (fc(F_ALLY) > 0)
+        # Materialise once: otherwise XLA:CPU recomputes the whole chain inside every sum below.
+        harm, healed, back, mult = materialize((harm, healed, back, mult))
+        damage = jnp.where(harm, jnp.floor(fc(F_BASE) * mult + 1e-3), 0.0)
+        heal = jnp.where(healed, fc(F_HEAL), 0.0)
+        back_landed = harm & back & (fc(F_TEAM) == 0)
+        if hit is not hits:  # spread each event's one target over the unit axis
+            on = one_hot(unit, u_n, axis=1)
+            damage_u, heal_u = jnp.where(on, damage[:, None], 0.0), jnp.where(on, heal[:, None], 0.0)
+            per_event, to_boss, backs = damage, damage_u[:, -1], back_landed
+        else:
+            damage_u, heal_u = damage, heal
+            per_event, to_boss, backs = total(damage, axis=1), damage[:, -1], total(back_landed, axis=1)
+        by_owner = one_hot(owner, u_n, axis=1).astype(jnp.float32)  # [n, U, ...]
+        # Damage is whole points, so every sum here is exact in any order.
+        damage_in = damage_in + total(damage_u)
+        heal_in = heal_in + total(heal_u)
+        dealt = dealt + total(by_owner * per_event[:, None])
+        dealt_to_boss = dealt_to_boss + total(by_owner * to_boss[:, None])
+        back_count = back_count + total(by_owner * backs.astype(jnp.float32)[:, None])
 
-    dice = uniform_dice(key, (3, e_n, u_n))
-    crit = dice[0] < f[:, F_CRIT, None]
-    rel = from_pos[:, None] - state.pos[None]  # [E, U, 2]
-    rel = rel / jnp.maximum(jnp.linalg.norm(rel, axis=-1, keepdims=True), EPS)
-    back = jnp.sum(rel * -heading_vec(state.heading)[None], axis=-1) >= BACK_ATTACK_COS
-    evasion = st.evasion[None] + 0.5 * (st.agility[None] - f[:, F_AGI, None])
-    dodge = dice[1] * 100.0 < evasion
-    parry = dice[2] * 100.0 < st.parry[None]
-    mult = (
-        jnp.where(crit, f[:, F_CRIT_MULT, None], 1.0)
-        * jnp.where(back, f[:, F_BACK_MULT, None], 1.0)
-        * f[:, F_VERS, None]
-        * ((1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0))[None]
-        * jnp.where(parry, PARRY_FACTOR, 1.0)
-    )
-    enemy = f[:, F_TEAM, None] != params.team[None].astype(jnp.float32)
-    # Homing and instant hits land on their target whatever the flags: gate them here.
-    harm = hits & enemy & (f[:, F_ENEMY, None] > 0) & ~dodge
-    damage = jnp.where(harm, jnp.floor(f[:, F_BASE, None] * mult + 1e-3), 0.0)  # [E, U]
-    heal = jnp.where(hits & ~enemy & (f[:, F_ALLY, None] > 0), f[:, F_HEAL, None], 0.0)
-    # Materialise once: otherwise XLA:CPU recomputes the whole chain inside every reduction below.
-    damage, heal, back = jax.lax.optimization_barrier((damage, heal, back))
-
-    hp = state.hp - jnp.sum(damage, axis=0)
+    hp = state.hp - damage_in
     alive = state.alive & (hp > 0)
-    hp = jnp.where(alive, jnp.minimum(hp + jnp.sum(heal, axis=0), st.max_hp), 0.0)  # HP floors at 0
-    dealt = contract(by_owner.T, jnp.sum(damage, axis=1))
-    dealt_to_boss = contract(by_owner.T, damage[:, -1])
-    back_landed = harm & back & (f[:, F_TEAM, None] == 0)
-    back_count = contract(by_owner.T, jnp.sum(back_landed, axis=1).astype(jnp.float32)).astype(jnp.int32)
+    hp = jnp.where(alive, jnp.minimum(hp + heal_in, st.max_hp), 0.0)  # HP floors at 0
+    back_count = back_count.astype(jnp.int32)
     died = state.alive & ~alive
     state = state.replace(
         hp=hp, alive=alive,
@@ -444,18 +519,18 @@ def resolve_hits(key, state: State, params: Params, table: jnp.ndarray, hits, so
 def basic_attacks(state: State, params: Params, dt: float):
     """Automatic melee hits on the enemy target within ``attack_range`` every ``1/attack_speed`` s.
 
-    Off when ``attack_power = 0`` (the reference setting). Returns ``(state, hits: bool[U, U])``.
+    Off when ``attack_power = 0`` (the reference setting). Returns ``(state, (hit: bool[U, ...], unit:
+    int32[U, ...]))``: whether each unit's attack hits its target this sub-step, and the target.
     """
     st = params.stats
     t = state.target
-    d = jnp.linalg.norm(pick(state.pos, t) - state.pos, axis=-1) - st.radius - pick(st.radius, t)
+    d = norm(pick(state.pos, t[:, None]) - state.pos, axis=1) - st.radius - pick(st.radius, t)
     # Time passes first, so that the next attack comes 1 / attack_speed after this one.
     left = jnp.maximum(state.basic_cooldown - dt, 0.0)
     ready = left <= TIME_EPS
     go = state.alive & pick(state.alive, t) & (st.attack_power > 0) & (d <= st.attack_range) & ready
     cooldown = jnp.where(go, 1.0 / st.attack_speed, left)
-    hits = go[:, None] & jax.nn.one_hot(t, t.shape[0], dtype=bool)
-    return state.replace(basic_cooldown=cooldown), hits
+    return state.replace(basic_cooldown=cooldown), (go, t)
 
 
 def regenerate(state: State, params: Params, dt: float) -> State:

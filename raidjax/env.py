@@ -15,7 +15,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax import combat, heuristic, movement
+from raidjax import combat, heuristic, lanes, movement
 from raidjax.observation import observe
 from raidjax.reference_observation import remember, start_memory
 from raidjax.types import (
@@ -36,6 +36,7 @@ from raidjax.types import (
     Projectiles,
     State,
 )
+from raidjax.utils import dice_seeds
 
 PLAYER_SPAWN_Y, PLAYER_SPACING = -10.0, 3.0
 BOSS_SPAWN = (0.0, 8.0)
@@ -114,10 +115,10 @@ def random_spawns(key: jax.Array, params: Params) -> tuple[jax.Array, jax.Array]
 
 
 def _boss_still_ticks(state: State, params: Params, n_ticks: int) -> jnp.ndarray:
-    """``int32[]``: ticks of this sub-step at whose start the boss is still casting a cast in progress."""
+    """``int32[...]``: ticks of this sub-step at whose start the boss is still casting a cast in progress."""
     b = state.pos.shape[0] - 1
     fire_tick = combat.ticks_until_expired(state.cast_left[b], params, n_ticks)
-    return jnp.max(jnp.where(state.casting[b], jnp.minimum(fire_tick, n_ticks), 0))
+    return lanes.fold(jnp.maximum, jnp.where(state.casting[b], jnp.minimum(fire_tick, n_ticks), 0))
 
 
 def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Params, n_ticks: int) -> State:
@@ -132,55 +133,89 @@ def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Par
         return state
     b = state.pos.shape[0] - 1
     new = state.casting[b] & ~before.casting[b]
-    fire_tick = jnp.min(jnp.where(new, combat.ticks_until_expired(state.cast_left[b], params, n_ticks), n_ticks + 1))
+    fire_tick = lanes.fold(jnp.minimum, jnp.where(new, combat.ticks_until_expired(state.cast_left[b], params, n_ticks),
+                                                  n_ticks + 1))
     moved = jnp.minimum(1 + jnp.maximum(n_ticks - fire_tick, 0), n_ticks)
-    started = jnp.any(new) & ~jnp.any(before.casting[b])
+    started = lanes.any_(new) & ~lanes.any_(before.casting[b])
     frac = jnp.where(started, moved / n_ticks, 1.0)
     pos_b = start_pos[b] + frac * (state.pos[b] - start_pos[b])
-    return state.replace(pos=state.pos.at[b].set(pos_b))
+    return state.replace(pos=movement.set_boss(state.pos, pos_b))
 
 
-def substep(key, state: State, actions, params: Params, table, n_ticks: int):
-    """Advance one arena by ``n_ticks`` 0.02 s ticks. Returns ``(state, to_boss: f32[U], back: i32[U])``."""
+def substep(seeds, state: State, actions, params: Params, table, n_ticks: int):
+    """Advance by ``n_ticks`` 0.02 s ticks; a lane function (``raidjax.lanes``: one arena's shapes, then
+    any lane axes ``...``).
+
+    Args:
+        seeds: ``uint32[2, ...]`` dice seeds of this sub-step (``utils.dice_seeds``).
+        state: ``State`` lane arrays; actions: ``int32[P, ...]`` (checked); params: ``Params`` lane arrays.
+        table: ``float32[U * (S + 1), 13, ...]``, ``combat.effect_table`` rows.
+        n_ticks: ticks in the sub-step (static).
+
+    Returns:
+        ``(state, to_boss: float32[U, ...], back: int32[U, ...])``: damage each unit dealt to the boss
+        and back attacks it landed in the sub-step.
+    """
     dt = n_ticks * TICK
     old_pos = state.pos
     # Named scopes label each phase's operations in compiled programs and profiles
     # (benchmarks/step_profile.py); they change nothing else.
+    # Each phase's state is materialised (``lanes.materialize``) so that XLA:CPU does not recompute
+    # a phase inside every consumer of its results.
     with jax.named_scope("movement"):
         state = movement.move_players(state, actions, params, dt)
         still = _boss_still_ticks(state, params, n_ticks)
         state = movement.move_boss(state, params, dt, (n_ticks - still) * TICK)
         state = movement.clamp_to_walls(state, params)
-        state = movement.update_moving(state, old_pos, dt)
+        state = lanes.materialize(movement.update_moving(state, old_pos, dt))
     with jax.named_scope("casting"):
         before = state
         state = combat.start_casts(state, params, heuristic.cast_requests(actions, state.casting.shape[1]))
         state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
-        state, fired_tick = combat.advance_casts(state, params, n_ticks)
+        state, fired_tick = lanes.materialize(combat.advance_casts(state, params, n_ticks))
     with jax.named_scope("fire"):
-        state, inst_hits, inst_from, flight = combat.fire(state, params, fired_tick, n_ticks)
-    proj = state.projectiles
+        state, inst_hits, inst_from, flight = lanes.materialize(combat.fire(state, params, fired_tick, n_ticks))
+    pool, skills, basic = combat.event_sources(table, state.projectiles, fired_tick.shape[1])
     with jax.named_scope("projectiles"):
-        state, proj_hits, proj_from = combat.move_projectiles(state, params, table, flight)
+        state, proj_hits, proj_from = combat.move_projectiles(state, params, pool[0], flight)
     with jax.named_scope("hits"):
         state, basic_hits = combat.basic_attacks(state, params, dt)
-        u_n, s_n = fired_tick.shape
-        units = jnp.arange(u_n, dtype=jnp.int32)
-        source = jnp.concatenate([
-            combat.source_index(proj.owner, proj.slot, s_n),
-            combat.source_index(jnp.repeat(units, s_n), jnp.tile(jnp.arange(s_n, dtype=jnp.int32), u_n), s_n),
-            combat.source_index(units, jnp.full(u_n, s_n, jnp.int32), s_n),
-        ])
-        hits = jnp.concatenate([proj_hits, inst_hits, basic_hits])
-        from_pos = jnp.concatenate([proj_from, inst_from, state.pos])
-        state, to_boss, back = combat.resolve_hits(key, state, params, table, hits, source, from_pos)
+        groups = ((*pool, proj_hits, proj_from), (*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))
+        state, to_boss, back = lanes.materialize(combat.resolve_hits(seeds, state, params, groups))
     state = combat.regenerate(state, params, dt)
     state = state.replace(clock=state.clock + dt)
-    players_dead = ~jnp.any(state.alive[:-1])
+    players_dead = ~lanes.any_(state.alive[:-1])
     # The reference checks the players before the boss: a tick that kills both is a loss.
     boss_dead_result = jnp.where(players_dead & params.config.ties_are_losses, LOSS, WIN)
     result = jnp.where(~state.alive[-1], boss_dead_result, jnp.where(players_dead, LOSS, RUNNING))
-    return state.replace(result=jnp.int32(result)), to_boss, back
+    return state.replace(result=result.astype(jnp.int32)), to_boss, back
+
+
+def _advance(seeds, state: State, actions, params: Params, table):
+    """Play the decision's sub-steps (one per row of ``seeds: uint32[n_sub, 2, ...]``) on lane arrays;
+    a finished arena stays as it ended. Returns ``(state, to_boss: float32[U, ...], back: int32[U, ...])``."""
+    n_ticks = TICKS_PER_DECISION // seeds.shape[0]
+
+    def one_substep(carry, xs):
+        sub_seeds, i = xs
+        cur, to_boss, back = carry
+        # The gate must be a value XLA cannot fold: the loop counter, or with a single sub-step (its
+        # loop is unrolled) the first lane's seed compared with itself plus one.
+        first = sub_seeds.reshape(-1)[0]
+        with lanes.gate(i >= 0 if seeds.shape[0] > 1 else first != first + 1):
+            nxt, tb, bk = substep(sub_seeds, cur, actions, params, table, n_ticks)
+        running = cur.result == RUNNING
+        return (_select(running, nxt, cur), to_boss + jnp.where(running, tb, 0.0),
+                back + jnp.where(running, bk, 0)), None
+
+    zeros = (jnp.zeros(state.hp.shape), jnp.zeros(state.hp.shape, jnp.int32))
+    # A scan compiles the sub-step once, whatever n_substeps is.
+    (new, to_boss, back), _ = jax.lax.scan(one_substep, (state, *zeros), (seeds, jnp.arange(seeds.shape[0])))
+    return new, to_boss, back
+
+
+# Under vmap the sub-steps run on the lane layout: the arena axis last (raidjax.lanes).
+advance = lanes.batched(_advance, full=(1,))
 
 
 def _select(pred, a, b):
@@ -235,20 +270,11 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     actions = check_actions(actions, params)
     n_players = actions.shape[0]
     n_sub = params.config.n_substeps
-    n_ticks = TICKS_PER_DECISION // n_sub
     was_done = state.result != RUNNING
     table = combat.effect_table(params)
-
-    def one_substep(carry, k):
-        cur, to_boss, back = carry
-        nxt, tb, bk = substep(k, cur, actions, params, table, n_ticks)
-        running = cur.result == RUNNING
-        return (_select(running, nxt, cur), to_boss + jnp.where(running, tb, 0.0),
-                back + jnp.where(running, bk, 0)), None
-
-    zeros = (jnp.zeros(n_players + 1), jnp.zeros(n_players + 1, jnp.int32))
-    # A scan compiles the sub-step once, whatever n_substeps is.
-    (new, to_boss, back), _ = jax.lax.scan(one_substep, (state, *zeros), jax.random.split(key, n_sub))
+    seeds = jax.vmap(dice_seeds)(jax.random.split(key, n_sub))
+    new, to_boss, back = advance(seeds, state.replace(memory=None), actions, params, table)
+    new = new.replace(memory=state.memory)
     decision = new.decision + 1
     result = jnp.where((new.result == RUNNING) & (decision >= params.config.max_decisions), DRAW, new.result)
     new = new.replace(decision=decision, result=jnp.int32(result))

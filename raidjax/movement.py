@@ -1,7 +1,8 @@
 """Movement of units within one sub-step: player actions (PT-HR's scripted moves come from
 ``raidjax.heuristic``), the boss's chase.
 
-All functions act on one arena (unbatched); ``U`` units, the boss last.
+Lane functions (``raidjax.lanes``): shapes are one arena's, ``U`` units with the boss last, followed by
+any number of lane (batch) axes; positions are ``float32[U, 2, ...]``.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import math
 import jax.numpy as jnp
 
 from raidjax import heuristic
+from raidjax.lanes import any_, argmin, pick
 from raidjax.types import (
     ACTION_HEURISTIC,
     BACKWARD,
@@ -24,7 +26,6 @@ from raidjax.types import (
     Params,
     State,
 )
-from raidjax.utils import pick
 
 DRAG = 0.92  # velocity factor per tick
 TURN_RATE = math.radians(200.0)  # rad/s (a Python float: importing raidjax must not start a JAX backend)
@@ -34,8 +35,14 @@ MOVING_SPEED = 0.5  # a unit displaced faster than this (units/s) counts as movi
 
 
 def heading_vec(angle: jnp.ndarray) -> jnp.ndarray:
-    """Unit vectors ``float32[..., 2]`` of heading angles ``float32[...]`` (0 = +x, CCW)."""
-    return jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=-1)
+    """Unit vectors ``float32[U, 2, ...]`` of heading angles ``float32[U, ...]`` (0 = +x, CCW)."""
+    return jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=1)
+
+
+def norm(v: jnp.ndarray, axis: int) -> jnp.ndarray:
+    """Length of vectors ``v`` whose 2 components lie along ``axis`` (counted from the front)."""
+    x, y = jnp.take(v, 0, axis), jnp.take(v, 1, axis)
+    return jnp.sqrt(x * x + y * y)
 
 
 def impulse_integrals(n_ticks: int) -> tuple[float, float, float]:
@@ -52,7 +59,7 @@ def impulse_integrals(n_ticks: int) -> tuple[float, float, float]:
 
 
 def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) -> State:
-    """Apply ``actions: int32[P]`` for ``dt`` seconds to the players (the boss is untouched).
+    """Apply ``actions: int32[P, ...]`` for ``dt`` seconds to the players (the boss is untouched).
 
     Learner actions use the velocity-impulse/drag model; ``ACTION_HEURISTIC`` moves the
     player by setting its position (GAME.md §9). Dead players do not move.
@@ -68,7 +75,7 @@ def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) 
     turn = jnp.where(actions == ROTATE_LEFT, 1.0, jnp.where(actions == ROTATE_RIGHT, -1.0, 0.0))
     new_heading = heading + turn * TURN_RATE * dt
     fwd = heading_vec(new_heading)
-    left = jnp.stack([-fwd[:, 1], fwd[:, 0]], axis=-1)
+    left = jnp.stack([-fwd[:, 1], fwd[:, 0]], axis=1)
     thrust = (
         (actions == FORWARD)[:, None] * fwd
         - (actions == BACKWARD)[:, None] * fwd
@@ -89,16 +96,21 @@ def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) 
     new_vel = jnp.where(keep[:, None], 0.0, new_vel)
     new_heading = jnp.where(keep, heading, new_heading)
     return state.replace(
-        pos=state.pos.at[:n_players].set(new_pos),
-        vel=state.vel.at[:n_players].set(new_vel),
-        heading=state.heading.at[:n_players].set(new_heading),
+        pos=jnp.concatenate([new_pos, state.pos[n_players:]]),
+        vel=jnp.concatenate([new_vel, state.vel[n_players:]]),
+        heading=jnp.concatenate([new_heading, state.heading[n_players:]]),
     )
 
 
 def nearest_alive_player(state: State) -> jnp.ndarray:
-    """Index ``int32[]`` of the alive player nearest the boss (0 if none is alive)."""
-    d = jnp.linalg.norm(state.pos[:-1] - state.pos[-1], axis=-1)
-    return jnp.argmin(jnp.where(state.alive[:-1], d, jnp.inf)).astype(jnp.int32)
+    """Index ``int32[...]`` of the alive player nearest the boss (0 if none is alive)."""
+    d = norm(state.pos[:-1] - state.pos[-1], axis=1)
+    return argmin(jnp.where(state.alive[:-1], d, jnp.inf))
+
+
+def set_boss(x: jnp.ndarray, value: jnp.ndarray) -> jnp.ndarray:
+    """``x[U, ...]`` with its last (the boss's) row replaced by ``value``."""
+    return jnp.concatenate([x[:-1], value[None].astype(x.dtype)])
 
 
 def move_boss(state: State, params: Params, dt: float, moving_time: jnp.ndarray | float | None = None) -> State:
@@ -114,19 +126,19 @@ def move_boss(state: State, params: Params, dt: float, moving_time: jnp.ndarray 
     target = state.target[b]
     keep = params.config.keep_dead_target
     target = jnp.where(pick(state.alive, target) | keep, target, nearest_alive_player(state))
-    to_t = pick(state.pos, target) - state.pos[b]
-    dist = jnp.linalg.norm(to_t)
+    to_t = pick(state.pos, target[None]) - state.pos[b]
+    dist = norm(to_t, axis=0)
     unit = to_t / jnp.maximum(dist, 1e-6)
     moving_time = dt if moving_time is None else moving_time
-    may_move = (dist >= BOSS_STOP_DISTANCE) & state.alive[b] & jnp.any(state.alive[:b])
+    may_move = (dist >= BOSS_STOP_DISTANCE) & state.alive[b] & any_(state.alive[:b])
     step = jnp.minimum(params.stats.move_speed[b] * moving_time, jnp.maximum(dist - BOSS_STOP_DISTANCE, 0.0))
     new_pos = state.pos[b] + jnp.where(may_move, step, 0.0) * unit
     facing = jnp.where(dist > 1e-6, jnp.arctan2(to_t[1], to_t[0]), state.heading[b])
     facing = jnp.where(state.alive[b], facing, state.heading[b])
     return state.replace(
-        pos=state.pos.at[b].set(new_pos),
-        heading=state.heading.at[b].set(facing),
-        target=state.target.at[b].set(target),
+        pos=set_boss(state.pos, new_pos),
+        heading=set_boss(state.heading, facing),
+        target=set_boss(state.target, target),
     )
 
 
@@ -139,6 +151,6 @@ def clamp_to_walls(state: State, params: Params) -> State:
 
 
 def update_moving(state: State, old_pos: jnp.ndarray, dt: float) -> State:
-    """Set ``moving[U]``: displaced faster than ``MOVING_SPEED`` during the sub-step."""
-    speed = jnp.linalg.norm(state.pos - old_pos, axis=-1) / dt
+    """Set ``moving[U, ...]``: displaced faster than ``MOVING_SPEED`` during the sub-step."""
+    speed = norm(state.pos - old_pos, axis=1) / dt
     return state.replace(moving=speed > MOVING_SPEED)

@@ -1,11 +1,14 @@
-"""Small array helpers that stay fast under ``vmap`` on CPU: ``pick`` and ``contract`` (gathers as
-contractions) and ``uniform_dice`` (cheap per-element game dice). Pure JAX; host-side helpers
+"""Small array helpers: ``pick`` (a gather along the leading axis) and ``uniform_dice`` / ``hash_dice``
+(cheap per-element game dice). Pure JAX; host-side helpers
 (files, command lines, reports) live in ``raidjax.io``."""
 
 from __future__ import annotations
 
+import math
+
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 def pick(x: jax.Array, idx: jax.Array) -> jax.Array:
@@ -21,36 +24,28 @@ def pick(x: jax.Array, idx: jax.Array) -> jax.Array:
     return jnp.take(x, idx, axis=0, mode="clip")
 
 
-def contract(weights: jax.Array, x: jax.Array) -> jax.Array:
-    """``weights @ x`` over ``x``'s first axis as multiply-and-sum, which XLA CPU fuses; tiny
-    batched matmuls are slow there.
+def dice_seeds(key: jax.Array) -> jax.Array:
+    """The two ``uint32`` words ``hash_dice`` hashes with: ``uint32[2]`` from ``key``."""
+    return jax.random.bits(key, (2,), jnp.uint32)
 
-    Args:
-        weights: ``[*I, N]``; x: ``[N, ...]``.
 
-    Returns:
-        ``[*I, ...]`` (bool if ``x`` is bool).
+def hash_dice(seeds: jax.Array, index) -> jax.Array:
+    """Uniform ``float32[*I, ...]`` in [0, 1): a murmur3-finalised hash of every die's ``index``
+    (numpy ``[*I]``, the same in every lane, or ``uint32[*I, ...]``), seeded by ``seeds: uint32[2, ...]``
+    (trailing lanes, ``raidjax.lanes``, come out trailing). Far cheaper than threefry per element and
+    good enough for game dice.
     """
-    xf = x.astype(jnp.float32)
-    w = weights.reshape(weights.shape + (1,) * (x.ndim - 1))
-    out = jnp.sum(w * xf, axis=weights.ndim - 1)
-    return out > 0.5 if x.dtype == jnp.bool_ else out.astype(x.dtype)
-
-
-def uniform_dice(key: jax.Array, shape: tuple[int, ...]) -> jax.Array:
-    """Uniform ``float32[shape]`` in [0, 1) from a counter hash seeded by ``key``.
-
-    Two words come from the key; every element is then a murmur3-finalised hash of its
-    index, which is far cheaper than threefry per element and good enough for game dice.
-    """
-    seed = jax.random.bits(key, (2,), jnp.uint32)
-    n = 1
-    for d in shape:
-        n *= d
-    x = jnp.arange(n, dtype=jnp.uint32) * jnp.uint32(0x9E3779B1) + seed[0]
+    if isinstance(index, np.ndarray):  # the same indices in every lane
+        index = jnp.asarray(index.astype(np.uint32).reshape(index.shape + (1,) * (seeds.ndim - 1)))
+    x = index * jnp.uint32(0x9E3779B1) + seeds[0]
     x = x ^ (x >> 16)
-    x = x * jnp.uint32(0x85EBCA6B) ^ seed[1]
+    x = x * jnp.uint32(0x85EBCA6B) ^ seeds[1]
     x = x ^ (x >> 13)
     x = x * jnp.uint32(0xC2B2AE35)
     x = x ^ (x >> 16)
-    return ((x >> 8).astype(jnp.float32) * (1.0 / (1 << 24))).reshape(shape)
+    return (x >> 8).astype(jnp.float32) * (1.0 / (1 << 24))
+
+
+def uniform_dice(key: jax.Array, shape: tuple[int, ...]) -> jax.Array:
+    """Uniform ``float32[shape]`` in [0, 1): ``hash_dice`` seeded from ``key``."""
+    return hash_dice(dice_seeds(key), np.arange(math.prod(shape), dtype=np.uint32).reshape(shape))

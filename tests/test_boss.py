@@ -216,7 +216,8 @@ def test_area_hits_at_most_hit_count_units_nearest_first(hit_count, expected):
 
 @jax.jit
 def _move(state, params):
-    return combat.move_projectiles(state, params, combat.effect_table(params), 0.1)
+    (feats, _), _, _ = combat.event_sources(combat.effect_table(params), state.projectiles, 3)
+    return combat.move_projectiles(state, params, feats, 0.1)
 
 
 def test_area_hits_each_unit_only_once_while_it_lingers():

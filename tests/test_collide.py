@@ -15,16 +15,17 @@ from raidjax import collide
 def test_box_distance_front_and_corner_of_a_player_body():
     """A player's body is a 1 x 1 square (half side 0.5): a projectile of radius 0.2 touches it from
     0.7 in front of its centre and from 0.5 * sqrt(2) + 0.2 = 0.907 towards a corner."""
-    q = jnp.array([[[0.7, 0.0]], [[0.0, -0.7]], [[0.6413, 0.6413]], [[0.66, 0.66]]])  # [M=4, U=1, 2]
-    d = np.asarray(collide.box_distance(q, jnp.array([0.5])))[:, 0]
+    q = jnp.array([[0.7, 0.0], [0.0, -0.7], [0.6413, 0.6413], [0.66, 0.66]])  # 4 points
+    d = np.asarray(collide.box_distance(q[:, 0], q[:, 1], jnp.float32(0.5)))
     np.testing.assert_allclose(d[:2], 0.2, atol=1e-6)
     assert d[2] <= 0.2 < d[3]
 
 
 def test_to_body_frame_turns_with_the_heading():
     """A point straight ahead of a unit facing +y lies on its body x axis; behind it, on -x."""
-    v = collide.to_body_frame(jnp.array([[[0.0, 2.0], [0.0, -3.0]]]), jnp.array([jnp.pi / 2, jnp.pi / 2]))
-    np.testing.assert_allclose(np.asarray(v)[0], [[2.0, 0.0], [-3.0, 0.0]], atol=1e-6)
+    heading = jnp.float32(jnp.pi / 2)
+    x, y = collide.to_body_frame(jnp.array([0.0, 0.0]), jnp.array([2.0, -3.0]), jnp.cos(heading), jnp.sin(heading))
+    np.testing.assert_allclose(np.stack([x, y], -1), [[2.0, 0.0], [-3.0, 0.0]], atol=1e-6)
 
 
 def _marched_entry(q, d, half, r, t_max=12.0, n=24001):
@@ -49,7 +50,7 @@ def test_ray_entry_matches_a_brute_force_march(seed):
     d = np.stack([np.cos(ang), np.sin(ang)], -1).astype(np.float32)
     half = rng.uniform(0.3, 1.5, u).astype(np.float32)
     r = rng.uniform(0.05, 0.8, m).astype(np.float32)
-    got = np.asarray(jax.jit(collide.ray_entry)(q, d, half, r))
+    got = np.asarray(jax.jit(collide.ray_entry)(q[..., 0], q[..., 1], d[..., 0], d[..., 1], half[None], r[:, None]))
     want = _marched_entry(q.astype(np.float64), d.astype(np.float64), half, r)
     assert ((got == 0) & (want == 0)).sum() > 0 and np.isinf(want).sum() > 0 and np.isfinite(want).sum() > 50
     np.testing.assert_array_equal(np.isinf(got), np.isinf(want))

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from helpers import BOSS, CAST_1, NOOP, acts, make, run, scenario, series
 
+import raidjax.utils
 from raidjax import combat
 
 FAST = {"skill1.projectile_speed": 0.0, "skill1.cast_time": 0.0}
@@ -73,11 +74,11 @@ E = 800
 @jax.jit
 def mean_multiplier(key, state, params):
     """Average damage of E simultaneous hits of player 0's slot 1 on the boss / base 50."""
-    table = combat.effect_table(params)
+    feats = jnp.broadcast_to(combat.effect_table(params)[combat.source_index(0, 0, 3)], (E, 13))
     hits = jnp.zeros((E, 4), bool).at[:, BOSS].set(True)
-    source = jnp.full((E,), combat.source_index(0, 0, 3), jnp.int32)
     from_pos = jnp.broadcast_to(state.pos[0], (E, 2))
-    _, to_boss, _ = combat.resolve_hits(key, state, params, table, hits, source, from_pos)
+    seeds = raidjax.utils.dice_seeds(key)
+    _, to_boss, _ = combat.resolve_hits(seeds, state, params, [(feats, jnp.zeros(E, jnp.int32), hits, from_pos)])
     return to_boss[0] / (50.0 * E)
 
 

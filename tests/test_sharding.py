@@ -23,7 +23,7 @@ raidjax.use_recommended_xla_flags()
 from raidjax.sharding import batch_sharding, put_batch
 from trainers.config import load_config
 from trainers.mapoca import make_trainer
-cfg = raidjax.EnvConfig.from_rules("reference", n_substeps=1, max_decisions=300)
+cfg = raidjax.EnvConfig.from_rules("reference", max_decisions=300)
 p = raidjax.make_params(skill_range=13.0, config=cfg)
 r = raidjax.playtest(jax.random.key(0), p, raidjax.policies.heuristic, 64)
 occ = raidjax.playtest_occupancy(jax.random.key(0), p, raidjax.policies.heuristic, 64)
@@ -62,7 +62,9 @@ def same(a: Path, b: Path, float_rtol: float = 0.0):
 
 
 def test_4_devices_give_the_single_device_outputs(tmp_path):
-    """Playtest: every output bit for bit. MA-POCA: one seed per device is a batch of 1 where one
+    """Playtest (the reference game, 5 sub-steps per decision): every output bit for bit (with one
+    sub-step per decision the batched step may round differently with the batch, GAME.md). MA-POCA:
+    one seed per device is a batch of 1 where one
     device has a batch of 4, which XLA vectorises differently, so float sums round differently
     (about 1e-8 in the weights); integers must be equal and floats agree to rtol 1e-4, atol 1e-5 (the
     policy loss is a mean of O(1) terms that cancels to about 1e-4, so its float32 rounding shows

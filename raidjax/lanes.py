@@ -1,0 +1,162 @@
+"""The lane layout: the sub-step's arrays carry the arena axis last, so work runs over wide vectors.
+
+Under ``jax.vmap`` the batch axis becomes the *first* axis of every array: a pool of ``[arenas, 16,
+4]`` has its small unit axis innermost, and XLA:CPU spends its time on 4-wide loops, reductions over
+that axis and gathers. The sub-step (``raidjax.env``'s ``advance``) is instead written for arrays
+whose leading axes are the game's own (units, slots, pool slots, components) and whose trailing
+axes, the *lanes*, are any number of batch axes, including none. Every elementwise operation then
+runs over the arenas, and reductions over units or slots are a few vector operations.
+
+One arena's ``State`` and ``Params`` already are lane arrays with no lanes (a unit's position
+``pos[u]`` is ``float32[2]``). ``batched`` gives a lane function a ``vmap`` rule that moves the arena
+axis last instead of first, so ``jax.vmap(raidjax.step)`` runs the lane program over the arenas.
+
+Helpers (shapes: ``x[N, *R, *L]`` with ``L`` the lanes; indices are lane arrays): ``pick`` (gather
+along the leading axis), ``one_hot``, ``argmin``, ``first_true`` and reductions over leading axes as
+folds of elementwise operations (``total``, ``any_``, ``fold``, ``cumsum``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+
+import jax
+import jax.numpy as jnp
+from jax.custom_batching import custom_vmap
+
+
+def pick(x: jax.Array, idx: jax.Array) -> jax.Array:
+    """``x[idx]`` along the leading axis, lane by lane, as ``N - 1`` selects (no gather).
+
+    Args:
+        x: ``[N, *R]``; idx: integer array broadcastable against ``x[0]`` (values past ``N - 1``
+            read the last row, as ``mode="clip"`` does).
+
+    Returns:
+        ``broadcast(idx, x[0])``-shaped array of ``x``'s dtype.
+    """
+    n = x.shape[0]
+    out = jnp.broadcast_to(x[n - 1], jnp.broadcast_shapes(idx.shape, x.shape[1:]))
+    for i in range(n - 1):
+        out = jnp.where(idx == i, x[i], out)
+    return out
+
+
+def one_hot(idx: jax.Array, n: int, axis: int) -> jax.Array:
+    """``bool``: ``idx`` with a new axis of size ``n`` inserted at ``axis`` (counted from the front),
+    true where the new index equals ``idx``."""
+    ar = jnp.arange(n, dtype=idx.dtype).reshape((n,) + (1,) * (idx.ndim - axis))
+    return jnp.expand_dims(idx, axis) == ar
+
+
+def argmin(x: jax.Array, axis: int = 0) -> jax.Array:
+    """``int32``: the first index of the smallest value along ``axis`` (``jnp.argmin``'s ties)."""
+    best = jax.lax.index_in_dim(x, 0, axis, keepdims=False)
+    idx = jnp.zeros(best.shape, jnp.int32)
+    for i in range(1, x.shape[axis]):
+        xi = jax.lax.index_in_dim(x, i, axis, keepdims=False)
+        better = xi < best
+        best, idx = jnp.where(better, xi, best), jnp.where(better, i, idx)
+    return idx
+
+
+def first_true(x: jax.Array) -> jax.Array:
+    """``int32``: the first index along the leading axis where ``x`` is true, 0 where none is."""
+    idx = jnp.zeros(x.shape[1:], jnp.int32)
+    for i in reversed(range(x.shape[0])):
+        idx = jnp.where(x[i], i, idx)
+    return idx
+
+
+def batched(fn, full: tuple[int, ...] = ()):
+    """``fn`` (a lane function of pytrees) with a ``vmap`` rule that puts the arena axis last.
+
+    ``fn(*args)`` must work on lane arrays with any trailing lanes and return lane arrays.
+    Under ``jax.vmap`` the rule moves every batched argument's axis to the end; an unbatched
+    argument gets a trailing lane of size 1 (it broadcasts against the arenas), or, at the
+    positions ``full`` (arguments whose shape the outputs keep, such as a carried state), is
+    broadcast to the batch. ``fn`` runs once on the lanes and every output's axis moves back to the
+    front. Nested ``vmap``s batch the rule's program as any other (the arena axis stays innermost).
+    """
+
+    @custom_vmap
+    def wrapped(*args):
+        return fn(*args)
+
+    @wrapped.def_vmap
+    def rule(axis_size, in_batched, *args):
+        if jax.default_backend() != "cpu":  # measured: the lanes pay on XLA:CPU only (see below)
+            axes = jax.tree.map(lambda b: 0 if b else None, tuple(in_batched))
+            out = jax.vmap(fn, in_axes=axes)(*args)
+            return out, jax.tree.map(lambda _: True, out)
+        def to_lanes(x, is_batched, width):
+            return jnp.moveaxis(x, 0, -1) if is_batched else jnp.broadcast_to(x[..., None], x.shape + (width,))
+
+        lanes = tuple(jax.tree.map(functools.partial(to_lanes, width=axis_size if i in full else 1), a, b)
+                      for i, (a, b) in enumerate(zip(args, in_batched, strict=True)))
+        out = fn(*lanes)
+        return jax.tree.map(lambda x: jnp.moveaxis(x, -1, 0), out), jax.tree.map(lambda _: True, out)
+
+    return functools.wraps(fn)(wrapped)
+
+
+def fold(op, x: jax.Array, axis: int = 0) -> jax.Array:
+    """``op`` applied left to right over the slices of ``x`` along ``axis`` (counted from the front).
+
+    XLA:CPU loops element by element over a reduction of a leading axis; a fold is a few
+    elementwise operations over the lanes instead (sums come out in index order).
+    """
+    out = jax.lax.index_in_dim(x, 0, axis, keepdims=False)
+    for i in range(1, x.shape[axis]):
+        out = op(out, jax.lax.index_in_dim(x, i, axis, keepdims=False))
+    return out
+
+
+def total(x: jax.Array, axis: int = 0) -> jax.Array:
+    """Sum along a leading ``axis`` (a ``fold``; booleans count as ``int32``)."""
+    return fold(jnp.add, x.astype(jnp.int32) if x.dtype == jnp.bool_ else x, axis)
+
+
+def any_(x: jax.Array, axis: int = 0) -> jax.Array:
+    """``jnp.any`` along a leading ``axis`` (a ``fold``)."""
+    return fold(jnp.logical_or, x, axis)
+
+
+def cumsum(x: jax.Array) -> jax.Array:
+    """``int32`` running count or sum along the leading axis, in index order."""
+    x = x.astype(jnp.int32) if x.dtype == jnp.bool_ else x
+    out = [x[0]]
+    for i in range(1, x.shape[0]):
+        out.append(out[-1] + x[i])
+    return jnp.stack(out)
+
+
+# The gate of the sub-step being traced (see ``materialize``); None outside one.
+_GATE: list = [None]
+
+
+@contextlib.contextmanager
+def gate(pred: jax.Array):
+    """While tracing a sub-step: ``materialize`` branches on ``pred``, a scalar ``bool`` the compiler
+    cannot evaluate (the sub-step loop's counter compared with 0), which is always true."""
+    _GATE.append(pred)
+    try:
+        yield
+    finally:
+        _GATE.pop()
+
+
+def materialize(tree):
+    """``tree`` (a pytree of arrays) unchanged, computed once into memory before its consumers run.
+
+    XLA:CPU fuses an elementwise chain into every consumer and recomputes it there (per element of
+    a reduction, per consumer); ``jax.lax.optimization_barrier`` does not stop that on CPU, a
+    conditional does. Inside ``gate`` the values go through a ``lax.cond`` on the gate, which is
+    always true; elsewhere, off the CPU backend (a GPU conditional would wait on the host) and when an
+    outer ``vmap`` batches the gate, this changes nothing.
+    """
+    if _GATE[-1] is None or jax.default_backend() != "cpu":
+        return tree
+    # The other branch must differ, or XLA merges the two and drops the conditional.
+    return jax.lax.cond(_GATE[-1], lambda t: t, lambda t: jax.tree.map(jnp.zeros_like, t), tree)

@@ -1,0 +1,110 @@
+"""The lane layout (``raidjax.lanes``): its helpers equal the jnp operations they replace, and the
+step's ``vmap`` rule (arena axis last) gives the state one arena's step gives, bit for bit, whether
+the content is shared or per arena, and under a second ``vmap``."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import ACTION_HEURISTIC, CAST_1, NOOP, acts, run, scenario
+
+import raidjax
+from raidjax import lanes
+from raidjax.types import FORWARD
+
+
+@pytest.fixture(scope="module")
+def data():
+    rng = np.random.default_rng(0)
+    # Values on a coarse grid so that ties occur (argmin must keep jnp's first index).
+    x = jnp.asarray(rng.integers(0, 4, (5, 3, 7)).astype(np.float32))
+    idx = jnp.asarray(rng.integers(0, 5, (3, 7)), jnp.int32)
+    mask = jnp.asarray(rng.random((5, 3, 7)) < 0.3)
+    return x, idx, mask
+
+
+def test_pick_is_a_gather_along_the_leading_axis(data):
+    x, idx, _ = data
+    want = jnp.take_along_axis(x, idx[None], axis=0)[0]
+    np.testing.assert_array_equal(lanes.pick(x, idx), want)
+    # Rows past the end read the last one, as jnp.take(mode="clip").
+    np.testing.assert_array_equal(lanes.pick(x, jnp.full((3, 7), 9)), x[-1])
+
+
+def test_argmin_first_true_and_folds_equal_jnp(data):
+    x, _, mask = data
+    for axis in (0, 1):
+        np.testing.assert_array_equal(lanes.argmin(x, axis), jnp.argmin(x, axis))
+        np.testing.assert_array_equal(lanes.total(x, axis), jnp.sum(x, axis))
+        np.testing.assert_array_equal(lanes.any_(mask, axis), jnp.any(mask, axis))
+        np.testing.assert_array_equal(lanes.fold(jnp.maximum, x, axis), jnp.max(x, axis))
+    np.testing.assert_array_equal(lanes.first_true(mask), jnp.argmax(mask, 0))
+    np.testing.assert_array_equal(lanes.cumsum(mask), jnp.cumsum(mask, 0))
+    np.testing.assert_array_equal(lanes.total(mask), jnp.sum(mask, 0))
+    np.testing.assert_array_equal(lanes.one_hot(jnp.array([[2, 0]]), 3, axis=1),
+                                  jax.nn.one_hot(jnp.array([[2, 0]]), 3, dtype=bool).transpose(0, 2, 1))
+
+
+def test_materialize_returns_its_input_inside_and_outside_a_gate():
+    tree = {"a": jnp.arange(3.0), "b": jnp.array([True, False])}
+
+    @jax.jit
+    def gated(t, flag):
+        with lanes.gate(flag > 0):
+            return lanes.materialize(t)
+
+    for out in (lanes.materialize(tree), gated(tree, jnp.int32(1))):
+        np.testing.assert_array_equal(out["a"], tree["a"])
+        np.testing.assert_array_equal(out["b"], tree["b"])
+
+
+def _fights():
+    """Three arenas in mid-fight (live projectiles, casts), different content and actions."""
+    contents = [raidjax.make_params(skill_range=r, **extra)
+                for r, extra in ((5.0, {}), (13.0, {"armor": 30}), (9.0, {"skill1.cool_time": 1.0}))]
+    states = []
+    for c in contents:
+        s = scenario(c, players=((-3, -4), (0, -4.5), (3, -4)), boss=(0.0, 0.0))
+        states.append(run(s, c, acts(ACTION_HEURISTIC), 6)[0])
+    actions = jnp.stack([acts(ACTION_HEURISTIC), acts(CAST_1, NOOP, FORWARD), acts(NOOP)])
+    return contents, states, actions
+
+
+def stacked(trees):
+    return jax.tree.map(lambda *x: jnp.stack(x), *trees)
+
+
+def assert_equal(a, b):
+    for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+
+
+def test_vmapped_step_equals_single_steps_bit_for_bit():
+    contents, states, actions = _fights()
+    keys = jax.random.split(jax.random.key(4), 3)
+    single = [jax.jit(raidjax.step)(keys[i], states[i], actions[i], contents[i]) for i in range(3)]
+    out = jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked(contents))
+    for i in range(3):
+        mine = jax.tree.map(lambda x, i=i: x[i], out)
+        assert_equal(mine[1:], single[i][1:])  # state, reward, done, info: bit for bit
+        # The observation is built per decision by an ordinary vmap, which XLA may round apart
+        # from the single arena's by an ulp.
+        for x, y in zip(jax.tree.leaves(mine[0]), jax.tree.leaves(single[i][0]), strict=True):
+            np.testing.assert_allclose(np.asarray(x, np.float32), np.asarray(y, np.float32), rtol=0, atol=1e-6)
+    # One content shared by every arena (params unbatched: it broadcasts along the lanes).
+    shared = jax.jit(jax.vmap(raidjax.step, (0, 0, 0, None)))(keys, stacked(states), actions, contents[0])
+    per_arena = jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked([contents[0]] * 3))
+    assert_equal(shared[1:], per_arena[1:])
+
+
+def test_nested_vmap_equals_the_flat_one():
+    contents, states, actions = _fights()
+    keys = jax.random.split(jax.random.key(5), 6)
+    two = lambda t: jax.tree.map(lambda x: jnp.concatenate([x, x[::-1]]), t)  # noqa: E731
+    flat = jax.jit(jax.vmap(raidjax.step))(keys, two(stacked(states)), two(actions), two(stacked(contents)))
+    nest = lambda t: jax.tree.map(lambda x: x.reshape((2, 3) + x.shape[1:]), t)  # noqa: E731
+    nested = jax.jit(jax.vmap(jax.vmap(raidjax.step)))(nest(keys), nest(two(stacked(states))), nest(two(actions)),
+                                                      nest(two(stacked(contents))))
+    assert_equal(jax.tree.map(lambda x: x.reshape((6,) + x.shape[2:]), nested)[1:], flat[1:])

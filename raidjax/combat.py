@@ -451,20 +451,22 @@ def resolve_hits(seeds, state: State, params: Params, groups):
         n = f.shape[0]
         base = (np.arange(3)[:, None] * e_n + offset + np.arange(n)[None]) * u_n  # [3, n]
         offset += n
-        if isinstance(hits, tuple):  # one unit per event: [n, ...]
+        single = isinstance(hits, tuple)
+        if single:  # one unit per event: [n, ...]
             hit, unit = hits
             col = {k: pick(v, unit) for k, v in unit_cols.items()}
+            from_x, from_y = from_pos[:, 0], from_pos[:, 1]
             index = jnp.asarray(base.reshape(base.shape + (1,) * len(lanes)), jnp.uint32) + unit.astype(jnp.uint32)
             fc = lambda c, f=f: f[:, c]  # noqa: E731
         else:  # every unit: [n, U, ...]
             hit = hits
             col = {k: v[None] for k, v in unit_cols.items()}
+            from_x, from_y = from_pos[:, 0, None], from_pos[:, 1, None]
             index = (base[:, :, None] + np.arange(u_n)).astype(np.uint32)
             fc = lambda c, f=f: f[:, c, None]  # noqa: E731
         dice = hash_dice(seeds, index)
         crit = dice[0] < fc(F_CRIT)
-        relx = from_pos[:, 0] - col["x"] if hit is not hits else from_pos[:, 0, None] - col["x"]
-        rely = from_pos[:, 1] - col["y"] if hit is not hits else from_pos[:, 1, None] - col["y"]
+        relx, rely = from_x - col["x"], from_y - col["y"]
         length = jnp.maximum(jnp.sqrt(relx * relx + rely * rely), EPS)
         back = (relx / length) * col["back_x"] + (rely / length) * col["back_y"] >= BACK_ATTACK_COS
         evasion = col["evasion"] + 0.5 * (col["agility"] - fc(F_AGI))
@@ -486,7 +488,7 @@ def resolve_hits(seeds, state: State, params: Params, groups):
         damage = jnp.where(harm, jnp.floor(fc(F_BASE) * mult + 1e-3), 0.0)
         heal = jnp.where(healed, fc(F_HEAL), 0.0)
         back_landed = harm & back & (fc(F_TEAM) == 0)
-        if hit is not hits:  # spread each event's one target over the unit axis
+        if single:  # spread each event's one target over the unit axis
             on = one_hot(unit, u_n, axis=1)
             damage_u, heal_u = jnp.where(on, damage[:, None], 0.0), jnp.where(on, heal[:, None], 0.0)
             per_event, to_boss, backs = damage, damage_u[:, -1], back_landed

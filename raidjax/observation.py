@@ -10,9 +10,9 @@ import jax
 import jax.numpy as jnp
 
 from raidjax.combat import F_SPEED, F_TEAM, effect_table, haste_factor, skill_targets, source_index, usable_slot
+from raidjax.lanes import pick
 from raidjax.reference_observation import ReferenceObservation, observe_reference
 from raidjax.types import CAST_1, HALF_ARENA, HIT_ATTACK, TRIGGER_PASSIVE, Observation, Params, State
-from raidjax.utils import pick
 
 POS_SCALE, COOL_SCALE, RANGE_SCALE, DAMAGE_SCALE, CAST_SCALE = 20.0, 5.0, 20.0, 100.0, 5.0
 
@@ -112,7 +112,7 @@ def observe(state: State, params: Params, table: jax.Array | None = None) -> Obs
     # Hostile projectiles: the K nearest live ones owned by the boss's team.
     p = state.projectiles
     k = params.config.obs_projectiles
-    feats = pick(table, source_index(p.owner, p.slot, sk.in_use.shape[1]))
+    feats = pick(table, source_index(p.owner, p.slot, sk.in_use.shape[1])[:, None])  # [M, 13]
     hostile = p.live & (feats[:, F_TEAM] != 0)
     rel = p.pos[None] - state.pos[:n_players, None]  # [P, M, 2]
     d = jnp.linalg.norm(rel, axis=-1)

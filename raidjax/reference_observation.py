@@ -25,8 +25,8 @@ import jax.numpy as jnp
 from flax import struct
 
 from raidjax.combat import F_RADIUS, source_index
+from raidjax.lanes import pick
 from raidjax.types import HALF_ARENA, Params, State
-from raidjax.utils import pick
 
 STACK = 4  # NumStackedVectorObservations of the player's BehaviorParameters
 VECTOR = 15  # the stacked vector's size with one boss
@@ -210,7 +210,7 @@ def observe_reference(state: State, params: Params, table: jax.Array, action_mas
     origin, dirs = pos[:n_players], ray_directions(heading[:n_players])
     # Every pooled projectile also carries the prefab's 0.2 sphere (DefaultProjectile.prefab): the
     # larger of the two co-centred spheres is what a ray meets.
-    radii = jnp.maximum(pick(table, source_index(p.owner, p.slot, params.skills.in_use.shape[1]))[:, F_RADIUS],
+    radii = jnp.maximum(pick(table, source_index(p.owner, p.slot, params.skills.in_use.shape[1])[:, None])[:, F_RADIUS],
                         PREFAB_RADIUS)
     proj_rays = encode_rays(sphere_distances(origin, dirs, centres, radii, live))
     wall_rays = encode_rays(wall_distances(origin, dirs))

@@ -1,6 +1,6 @@
-"""Small array helpers: ``pick`` (a gather along the leading axis) and ``uniform_dice`` / ``hash_dice``
-(cheap per-element game dice). Pure JAX; host-side helpers
-(files, command lines, reports) live in ``raidjax.io``."""
+"""Game dice: ``uniform_dice`` / ``hash_dice`` (cheap per-element hashes) and ``dice_seeds``. Pure
+JAX; host-side helpers (files, command lines, reports) live in ``raidjax.io``; array helpers for the
+lane layout in ``raidjax.lanes``."""
 
 from __future__ import annotations
 
@@ -9,19 +9,6 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
-
-
-def pick(x: jax.Array, idx: jax.Array) -> jax.Array:
-    """``x[idx]`` along axis 0.
-
-    Args:
-        x: ``[N, ...]`` array (bool arrays come back as bool).
-        idx: integer array of any shape ``I`` with values in ``[0, N)``.
-
-    Returns:
-        ``[*I, ...]`` array.
-    """
-    return jnp.take(x, idx, axis=0, mode="clip")
 
 
 def dice_seeds(key: jax.Array) -> jax.Array:

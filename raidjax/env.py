@@ -157,31 +157,34 @@ def substep(seeds, state: State, actions, params: Params, table, n_ticks: int):
         and back attacks it landed in the sub-step.
     """
     dt = n_ticks * TICK
-    old_pos = state.pos
+    start, old_pos = state, state.pos
     # Named scopes label each phase's operations in compiled programs and profiles
     # (benchmarks/step_profile.py); they change nothing else.
-    # Each phase's state is materialised (``lanes.materialize``) so that XLA:CPU does not recompute
-    # a phase inside every consumer of its results.
+    # Each phase's new state is materialised (``lanes.materialize``; the leaves it did not change
+    # are already in memory) so that XLA:CPU does not recompute a phase inside every consumer.
     with jax.named_scope("movement"):
         state = movement.move_players(state, actions, params, dt)
         still = _boss_still_ticks(state, params, n_ticks)
         state = movement.move_boss(state, params, dt, (n_ticks - still) * TICK)
         state = movement.clamp_to_walls(state, params)
-        state = lanes.materialize(movement.update_moving(state, old_pos, dt))
+        state = lanes.materialize(movement.update_moving(state, old_pos, dt), since=start)
     with jax.named_scope("casting"):
         before = state
         state = combat.start_casts(state, params, heuristic.cast_requests(actions, state.casting.shape[1]))
         state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
-        state, fired_tick = lanes.materialize(combat.advance_casts(state, params, n_ticks))
+        state, fired_tick = lanes.materialize(combat.advance_casts(state, params, n_ticks), since=before)
     with jax.named_scope("fire"):
-        state, inst_hits, inst_from, flight = lanes.materialize(combat.fire(state, params, fired_tick, n_ticks))
+        cast = state
+        state, inst_hits, inst_from, flight = lanes.materialize(combat.fire(state, params, fired_tick, n_ticks),
+                                                                since=cast)
+        fired = state
     pool, skills, basic = combat.event_sources(table, state.projectiles, fired_tick.shape[1])
     with jax.named_scope("projectiles"):
         state, proj_hits, proj_from = combat.move_projectiles(state, params, pool[0], flight)
     with jax.named_scope("hits"):
         state, basic_hits = combat.basic_attacks(state, params, dt)
         groups = ((*pool, proj_hits, proj_from), (*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))
-        state, to_boss, back = lanes.materialize(combat.resolve_hits(seeds, state, params, groups))
+        state, to_boss, back = lanes.materialize(combat.resolve_hits(seeds, state, params, groups), since=fired)
     state = combat.regenerate(state, params, dt)
     state = state.replace(clock=state.clock + dt)
     players_dead = ~lanes.any_(state.alive[:-1])

@@ -147,7 +147,7 @@ def gate(pred: jax.Array):
         _GATE.pop()
 
 
-def materialize(tree):
+def materialize(tree, since=None):
     """``tree`` (a pytree of arrays) unchanged, computed once into memory before its consumers run.
 
     XLA:CPU fuses an elementwise chain into every consumer and recomputes it there (per element of
@@ -155,8 +155,17 @@ def materialize(tree):
     conditional does. Inside ``gate`` the values go through a ``lax.cond`` on the gate, which is
     always true; elsewhere, off the CPU backend (a GPU conditional would wait on the host) and when an
     outer ``vmap`` batches the gate, this changes nothing.
+
+    ``since``: a pytree whose leaves are already in memory (the phase's input state); leaves of
+    ``tree`` that are the very same arrays pass by the conditional, which would only copy them.
     """
     if _GATE[-1] is None or jax.default_backend() != "cpu":
         return tree
+    leaves, treedef = jax.tree.flatten(tree)
+    kept = {id(x) for x in jax.tree.leaves(since)}
+    new = [i for i, x in enumerate(leaves) if id(x) not in kept]
     # The other branch must differ, or XLA merges the two and drops the conditional.
-    return jax.lax.cond(_GATE[-1], lambda t: t, lambda t: jax.tree.map(jnp.zeros_like, t), tree)
+    done = jax.lax.cond(_GATE[-1], lambda t: t, lambda t: [jnp.zeros_like(x) for x in t], [leaves[i] for i in new])
+    for i, x in zip(new, done, strict=True):
+        leaves[i] = x
+    return jax.tree.unflatten(treedef, leaves)

@@ -60,6 +60,26 @@ def test_materialize_returns_its_input_inside_and_outside_a_gate():
         np.testing.assert_array_equal(out["b"], tree["b"])
 
 
+def test_materialize_passes_the_leaves_of_since_by_the_conditional():
+    """Leaves that are the very arrays of ``since`` come back as they are (no copy); the others go
+    through the conditional, values unchanged."""
+    seen = {}
+
+    @jax.jit
+    def gated(x, flag):
+        with lanes.gate(flag > 0):
+            y = x * 2.0
+            out = lanes.materialize({"x": x, "y": y}, since=(x,))
+        seen["kept"], seen["new"] = out["x"] is x, out["y"] is y
+        return out
+
+    out = gated(jnp.arange(3.0), jnp.int32(1))
+    on_cpu = jax.default_backend() == "cpu"  # elsewhere materialize changes nothing
+    assert seen == {"kept": True, "new": not on_cpu}
+    np.testing.assert_array_equal(out["y"], [0.0, 2.0, 4.0])
+    assert ("conditional" in gated.lower(jnp.arange(3.0), jnp.int32(1)).as_text("hlo")) == on_cpu
+
+
 def _fights():
     """Three arenas in mid-fight (live projectiles, casts), different content and actions."""
     contents = [raidjax.make_params(skill_range=r, **extra)

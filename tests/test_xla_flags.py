@@ -30,10 +30,18 @@ def test_import_changes_no_flag_and_starts_no_backend():
 def test_opt_in_appends_what_is_missing_and_keeps_the_users_values():
     assert xla_flags.with_recommended("") == " ".join(xla_flags.RECOMMENDED)
     mine = "--xla_cpu_enable_concurrency_optimized_scheduler=true --xla_force_host_platform_device_count=4"
-    assert xla_flags.with_recommended(mine) == mine + " " + xla_flags.RECOMMENDED[0]
+    assert xla_flags.with_recommended(mine) == " ".join([mine, xla_flags.RECOMMENDED[0], *xla_flags.RECOMMENDED[2:]])
     code = "import os, raidjax\nprint(raidjax.use_recommended_xla_flags(), os.environ['XLA_FLAGS'])"
-    assert run(code) == "True " + " ".join(xla_flags.RECOMMENDED)
+    assert run(code) == "True " + " ".join(xla_flags.known_flags())
     assert run(code, RAIDJAX_KEEP_XLA_FLAGS="1", XLA_FLAGS="-x") == "False -x"
+
+
+def test_only_flags_the_installed_jaxlib_defines_are_added():
+    """XLA aborts on a flag it does not know, so each is looked up in jaxlib's own library first."""
+    assert xla_flags.known_flags(("--xla_raidjax_no_such_flag=1",)) == ()
+    assert xla_flags.known_flags(("--xla_cpu_use_thunk_runtime=true",)) == ("--xla_cpu_use_thunk_runtime=true",)
+    code = "import os, raidjax\nprint(raidjax.use_recommended_xla_flags(), os.environ.get('XLA_FLAGS'))"
+    assert run(code) == "True " + " ".join(xla_flags.known_flags())
 
 
 def test_too_late_warns_and_changes_nothing():
@@ -51,4 +59,4 @@ def test_commands_run_with_the_flags(module, tmp_path):
             "sys.argv = ['x', '--help']\n"
             "try:\n    m.cli() if hasattr(m, 'cli') else m.main()\nexcept SystemExit:\n    pass\n"
             "print(os.environ.get('XLA_FLAGS'))")
-    assert run(code).splitlines()[-1] == " ".join(xla_flags.RECOMMENDED)
+    assert run(code).splitlines()[-1] == " ".join(xla_flags.known_flags())

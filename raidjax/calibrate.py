@@ -50,10 +50,9 @@ def calibration_table(n_games: int, seed: int = 0, ranges=RANGES, config: raidja
     contents = [raidjax.make_params(skill_range=r, config=config) for r in ranges]
     batch = jax.tree.map(lambda *x: jnp.stack(x), *contents)  # one content per group of games
     out = {}
-    for i, name in enumerate(("heuristic", "random")):
-        policy = raidjax.policies.BY_NAME[name]
-        res = raidjax.playtest(jax.random.key(seed * 1000 + i), batch, policy, n_games * len(ranges),
-                               games_per_arena=games_per_arena or auto_games_per_arena(n_games))
+    for i, name in enumerate(raidjax.policies.SCRIPTS):  # one compiled program plays both
+        res = raidjax.playtest(jax.random.key(seed * 1000 + i), batch, raidjax.policies.script, n_games * len(ranges),
+                               weights=jnp.int32(i), games_per_arena=games_per_arena or auto_games_per_arena(n_games))
         wins = np.asarray(res["outcome"] == raidjax.types.WIN).reshape(len(ranges), n_games).mean(axis=1)
         length = np.asarray(res["length"]).reshape(len(ranges), n_games).mean(axis=1)
         out[name] = {

@@ -51,4 +51,19 @@ def noop(key: jax.Array, obs: Observation, state: State, params: Params) -> jax.
     return jnp.zeros((params.team.shape[0] - 1,), jnp.int32)
 
 
+SCRIPTS = ("heuristic", "random")
+
+
+def script(which: jax.Array, key: jax.Array, obs: Observation, state: State, params: Params) -> jax.Array:
+    """The scripted policy named ``SCRIPTS[which]`` (``which``: ``int32[]``, a traced argument).
+
+    ``raidjax.playtest(key, params, script, n, weights=jnp.int32(i))`` plays PT-HR (``i = 0``) or
+    PT-RD (``i = 1``) with one compiled program for both (``raidjax.calibrate`` compiles once).
+
+    Returns:
+        ``int32[P]`` actions: those of ``heuristic`` or of ``random`` with the same key.
+    """
+    return jnp.where(which == 0, heuristic(key, obs, state, params), random(key, obs, state, params))
+
+
 BY_NAME = {"random": random, "heuristic": heuristic, "noop": noop}

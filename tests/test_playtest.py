@@ -141,6 +141,24 @@ def test_heuristic_and_noop_policies(ref_params):
     assert policies.noop(jax.random.key(0), obs, s, ref_params).tolist() == [0, 0, 0]
 
 
+def test_script_plays_pt_hr_or_pt_rd_from_one_program(ref_params, reference_results):
+    """``policies.script`` with index 0 plays the fixture's PT-HR games game for game; with index 1
+    it draws PT-RD's actions from the same key."""
+    from raidjax.playtest import _playtest
+
+    before = _playtest._cache_size()
+    hr = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, policies.script, N, weights=jnp.int32(0)))
+    for name in hr:
+        np.testing.assert_array_equal(hr[name], reference_results[name], err_msg=name)
+    raidjax.playtest(jax.random.key(0), ref_params, policies.script, N, weights=jnp.int32(1))
+    assert _playtest._cache_size() == before + 1
+    obs, s = RESET(jax.random.key(0), ref_params)
+    for k in range(8):
+        key = jax.random.key(k)
+        np.testing.assert_array_equal(policies.script(jnp.int32(1), key, obs, s, ref_params),
+                                      policies.random(key, obs, s, ref_params))
+
+
 def test_playtest_accepts_raw_and_typed_keys():
     """A legacy ``PRNGKey`` (uint32[2]) and a typed key give the same games (same stream)."""
     typed = jax.device_get(raidjax.playtest(jax.random.key(3), WIN, policies.heuristic, N))

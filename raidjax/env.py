@@ -174,17 +174,16 @@ def substep(seeds, state: State, actions, params: Params, table, n_ticks: int):
         state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
         state, fired_tick = lanes.materialize(combat.advance_casts(state, params, n_ticks), since=before)
     with jax.named_scope("fire"):
-        cast = state
         state, inst_hits, inst_from, flight = lanes.materialize(combat.fire(state, params, fired_tick, n_ticks),
-                                                                since=cast)
-        fired = state
+                                                                since=state)
+        after_fire = state
     pool, skills, basic = combat.event_sources(table, state.projectiles, fired_tick.shape[1])
     with jax.named_scope("projectiles"):
         state, proj_hits, proj_from = combat.move_projectiles(state, params, pool[0], flight)
     with jax.named_scope("hits"):
         state, basic_hits = combat.basic_attacks(state, params, dt)
         groups = ((*pool, proj_hits, proj_from), (*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))
-        state, to_boss, back = lanes.materialize(combat.resolve_hits(seeds, state, params, groups), since=fired)
+        state, to_boss, back = lanes.materialize(combat.resolve_hits(seeds, state, params, groups), since=after_fire)
     state = combat.regenerate(state, params, dt)
     state = state.replace(clock=state.clock + dt)
     players_dead = ~lanes.any_(state.alive[:-1])

@@ -21,11 +21,11 @@ The flags (each added only if the installed jaxlib knows it: XLA aborts on unkno
    prevent it). ``trainers.ppo_pcgrl.make_train`` warns on CPU when it is missing.
 3. ``--xla_cpu_use_fusion_emitters=false``: XLA:CPU's MLIR fusion emitters compile each of the
    step's ~450 fused operations through its own MLIR pipeline; its classic LLVM IR emitters
-   compile the step in about 60 % of the time and run it faster (measured: step compile 11.5 s ->
-   6.6 s; rollout 41-46 k -> 56-59 k decisions/s at 4 096 arenas on 2 cores; the golden games
-   replay bit for bit with either).
+   compile the step in about 60 % of the time (measured: 11.5 s -> 6.6 s) and run it at least as
+   fast (per-arena rollouts at 4 096 arenas on 2 cores, medians of 3: 44 769 -> 51 371
+   decisions/s; docs/RESULTS.md). The golden games replay bit for bit with either.
 
-GPU and TPU backends ignore both.
+GPU and TPU backends ignore them.
 """
 
 from __future__ import annotations

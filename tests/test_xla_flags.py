@@ -40,8 +40,6 @@ def test_only_flags_the_installed_jaxlib_defines_are_added():
     """XLA aborts on a flag it does not know, so each is looked up in jaxlib's own library first."""
     assert xla_flags.known_flags(("--xla_raidjax_no_such_flag=1",)) == ()
     assert xla_flags.known_flags(("--xla_cpu_use_thunk_runtime=true",)) == ("--xla_cpu_use_thunk_runtime=true",)
-    code = "import os, raidjax\nprint(raidjax.use_recommended_xla_flags(), os.environ.get('XLA_FLAGS'))"
-    assert run(code) == "True " + " ".join(xla_flags.known_flags())
 
 
 def test_too_late_warns_and_changes_nothing():

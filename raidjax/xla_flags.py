@@ -8,7 +8,8 @@ in a script or notebook to get the same speed:
     import raidjax
     raidjax.use_recommended_xla_flags()   # before the first JAX computation
 
-The flags (each added only if the installed jaxlib knows it: XLA aborts on unknown flags):
+The flags (each added only if the installed jaxlib's XLA accepts it: XLA aborts on unknown flags;
+``known_flags`` asks XLA once per jaxlib):
 
 1. ``--xla_cpu_experimental_ynn_fusion_type=``: XLA:CPU routes small reductions through YNNPACK
    fusions that are several times slower than its own loops for the tiny per-arena shapes of
@@ -31,8 +32,9 @@ GPU and TPU backends ignore them.
 from __future__ import annotations
 
 import functools
-import mmap
+import json
 import os
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -40,26 +42,77 @@ RECOMMENDED = ("--xla_cpu_experimental_ynn_fusion_type=", "--xla_cpu_enable_conc
                "--xla_cpu_use_fusion_emitters=false")
 
 
+def _jaxlib_id() -> str | None:
+    """Which jaxlib is installed (version and folder), read without importing it; None if none."""
+    import importlib.metadata
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec("jaxlib")
+        return f"{importlib.metadata.version('jaxlib')} {list(spec.submodule_search_locations or [])}" if spec else None
+    except (ImportError, ValueError):
+        return None
+
+
+def _probe(flags: tuple[str, ...]) -> tuple[str, ...]:
+    """The ``flags`` that XLA:CPU accepts, asked of XLA itself: a child Python starts JAX's CPU
+    backend with them; XLA aborts naming the flags it does not know, those are dropped and the
+    rest asked again. A child that fails for any other reason gives none."""
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAX_PLATFORMS")}
+    candidates = list(flags)
+    while candidates:
+        try:
+            child = subprocess.run([sys.executable, "-c", "import jax; jax.devices('cpu')"], capture_output=True,
+                                   text=True, timeout=300, env={**env, "JAX_PLATFORMS": "cpu",
+                                                                "XLA_FLAGS": " ".join(candidates)})
+        except (OSError, subprocess.SubprocessError):
+            return ()
+        if child.returncode == 0:
+            return tuple(candidates)
+        unknown = set(child.stderr.rpartition("in XLA_FLAGS:")[2].split())
+        if not unknown & set(candidates):  # failed for another reason: add nothing
+            return ()
+        candidates = [f for f in candidates if f not in unknown]
+    return ()
+
+
+def _cache_file() -> Path:
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "raidjax" / "xla_flags.json"
+
+
 @functools.cache
 def known_flags(flags: tuple[str, ...] = RECOMMENDED) -> tuple[str, ...]:
-    """The ``flags`` (default ``RECOMMENDED``) that the installed jaxlib defines (its XLA library
-    names them), in order; none when no jaxlib library is found. Reads the libraries' bytes without
-    loading them (a few tens of ms, once per process)."""
-    try:
-        import importlib.util
+    """The ``flags`` (default ``RECOMMENDED``) that the installed jaxlib's XLA accepts, in order;
+    none when no jaxlib is found.
 
-        spec = importlib.util.find_spec("jaxlib")
-        libs = [p for d in (spec.submodule_search_locations or []) for p in Path(d).glob("*.so")] if spec else []
-    except Exception:  # noqa: BLE001 - no jaxlib to read: leave the flags alone
+    XLA aborts the whole process on a flag it does not know, and flags come and go between jaxlib
+    releases (``--xla_cpu_use_fusion_emitters`` is gone in 0.11 although its name is still in the
+    library), so the answer comes from XLA: a child process is started with them once per jaxlib
+    (about 2 s) and the answer is kept in ``$XDG_CACHE_HOME/raidjax/xla_flags.json`` (default
+    ``~/.cache``), then once per process in memory."""
+    jaxlib = _jaxlib_id()
+    if jaxlib is None:
         return ()
-    found = set()
-    for lib in libs:
-        try:
-            with open(lib, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as m:
-                found.update(flag for flag in flags if m.find(flag.split("=")[0][2:].encode()) >= 0)
-        except (OSError, ValueError):  # unreadable or empty file
-            continue
-    return tuple(f for f in flags if f in found)
+    key = f"{jaxlib} {' '.join(flags)}"
+    cache = _cache_file()
+    try:
+        stored = json.loads(cache.read_text())
+    except (OSError, ValueError):
+        stored = {}
+    if isinstance(stored, dict) and isinstance(stored.get(key), list):
+        return tuple(f for f in flags if f in stored[key])
+    known = _probe(flags)
+    try:  # atomically: another process may be writing the same file
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile("w", dir=cache.parent, delete=False, suffix=".tmp") as f:
+            json.dump({**(stored if isinstance(stored, dict) else {}), key: list(known)}, f)
+        os.replace(f.name, cache)
+    except OSError:  # an unwritable cache only costs the probe next time
+        pass
+    return known
 
 
 def with_recommended(flags: str, recommended: tuple[str, ...] = RECOMMENDED) -> str:
@@ -88,9 +141,13 @@ def use_recommended_xla_flags() -> bool:
         ``False`` if nothing was changed: opted out, a jaxlib that knows none of them, or the backend had
         already started (then with a ``RuntimeWarning`` saying so).
     """
-    if os.environ.get("RAIDJAX_KEEP_XLA_FLAGS") == "1" or not known_flags():
+    if os.environ.get("RAIDJAX_KEEP_XLA_FLAGS") == "1":
         return False
     current = os.environ.get("XLA_FLAGS", "")
+    if with_recommended(current) == current:  # all set already (a child of a process that opted in)
+        return True
+    if not known_flags():
+        return False
     wanted = with_recommended(current, known_flags())
     if wanted == current:
         return True

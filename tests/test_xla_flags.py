@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -36,10 +37,23 @@ def test_opt_in_appends_what_is_missing_and_keeps_the_users_values():
     assert run(code, RAIDJAX_KEEP_XLA_FLAGS="1", XLA_FLAGS="-x") == "False -x"
 
 
-def test_only_flags_the_installed_jaxlib_defines_are_added():
-    """XLA aborts on a flag it does not know, so each is looked up in jaxlib's own library first."""
-    assert xla_flags.known_flags(("--xla_raidjax_no_such_flag=1",)) == ()
-    assert xla_flags.known_flags(("--xla_cpu_use_thunk_runtime=true",)) == ("--xla_cpu_use_thunk_runtime=true",)
+def test_only_flags_the_installed_xla_accepts_are_added(tmp_path, monkeypatch):
+    """XLA aborts on a flag it does not know, so XLA itself is asked (a child process) once per jaxlib."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    xla_flags.known_flags.cache_clear()
+    try:
+        mixed = ("--xla_raidjax_no_such_flag=1", "--xla_backend_optimization_level=3", "--xla_raidjax_nor_this=2")
+        assert xla_flags.known_flags(mixed) == ("--xla_backend_optimization_level=3",)
+        assert xla_flags.known_flags(("--xla_raidjax_no_such_flag=1",)) == ()
+        stored = json.loads((tmp_path / "raidjax" / "xla_flags.json").read_text())
+        assert sorted(stored.values()) == [[], ["--xla_backend_optimization_level=3"]]
+        # The next process reads the answer instead of asking again: a planted answer is believed.
+        key = next(k for k, v in stored.items() if v == [])
+        (tmp_path / "raidjax" / "xla_flags.json").write_text(json.dumps({key: ["--xla_raidjax_no_such_flag=1"]}))
+        xla_flags.known_flags.cache_clear()
+        assert xla_flags.known_flags(("--xla_raidjax_no_such_flag=1",)) == ("--xla_raidjax_no_such_flag=1",)
+    finally:
+        xla_flags.known_flags.cache_clear()
 
 
 def test_too_late_warns_and_changes_nothing():

@@ -116,9 +116,9 @@ SCALES = {
     "paper": Scale(preset="paper", ppo={}, seeds=5, chunk=2, episodes=5000, parts=50, gen_games=300,
                    eval_games=300),
     # For one accelerator: the paper's models and training, 1 000 skills per target and method
-    # (the paper protocol's metrics keep 300 of them). Not run yet: at the 79 000 PT-HR games/s one
-    # H200 measured (RESULTS, "On a GPU") its 70 M training and 252 M generation games take about
-    # 70 min at best.
+    # (the paper protocol's metrics keep 300 of them). Not run yet: at the 105 000 PT-HR games/s one
+    # H100 measured (RESULTS, "On a GPU") its 70 M training and 252 M generation games take about
+    # 50 min at best.
     "gpu": Scale(preset="paper", ppo={}, seeds=5, chunk=2, episodes=1000, parts=10, gen_games=300,
                  eval_games=300),
 }

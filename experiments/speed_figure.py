@@ -3,7 +3,7 @@ content) and JaxMARL's SMAX-3m, one line per environment and machine, from ``ben
 output.
 
     python -m experiments.speed_figure docs/results/speed/vs_smax_cpu.json \\
-        docs/results/speed/gpu_h200.jsonl --out docs/img/speed.png
+        docs/results/speed/gpu_h100.jsonl --out docs/img/speed.png
 
 Each input holds JSON objects, one per line or one per file; the ``vs_smax`` summaries among them
 (``"benchmark": "vs_smax"``, with ``machine`` and ``rows``) are plotted, everything else is skipped.

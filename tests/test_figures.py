@@ -47,7 +47,7 @@ def test_speed_figure_reads_the_stored_vs_smax_runs_and_skips_other_lines(tmp_pa
     stored = sorted((ROOT / "docs" / "results" / "speed").glob("*.json*"))
     runs = speed_figure.summaries([str(p) for p in stored])
     assert runs and all(r["benchmark"] == "vs_smax" for r in runs)
-    assert any(r["machine"]["platform"] == "gpu" for r in runs)  # gpu_h200.jsonl: rows and summaries mixed
+    assert any(r["machine"]["platform"] == "gpu" for r in runs)  # gpu_h100.jsonl: rows and summaries mixed
     out = tmp_path / "speed.png"
     speed_figure.main([*map(str, stored), "--out", str(out)])
     assert out.stat().st_size > 1000

@@ -36,12 +36,13 @@ from raidjax.types import (
     Projectiles,
     State,
 )
-from raidjax.utils import dice_seeds
+from raidjax.utils import dice_seeds, traced_once
 
 PLAYER_SPAWN_Y, PLAYER_SPACING = -10.0, 3.0
 BOSS_SPAWN = (0.0, 8.0)
 
 
+@traced_once
 def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
     """Start an episode.
 
@@ -252,6 +253,7 @@ def check_actions(actions, params: Params) -> jax.Array:
     return jnp.where((actions < 0) | (actions > ACTION_HEURISTIC), NOOP, actions)
 
 
+@traced_once
 def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     """Play one decision (0.1 s) of one arena; no reset.
 
@@ -316,6 +318,7 @@ def team_reward(info: dict, done: jax.Array) -> jax.Array:
     return DAMAGE_REWARD * jnp.sum(info["damage_dealt"], axis=-1) + WIN_REWARD * won
 
 
+@traced_once
 def next_episode(key: jax.Array, state: State, params: Params) -> tuple[Observation, State]:
     """Start the arena's next episode after ``state`` (normally an ended one).
 
@@ -361,6 +364,7 @@ def next_episode(key: jax.Array, state: State, params: Params) -> tuple[Observat
     return observe(fresh, params), fresh
 
 
+@traced_once
 def step_autoreset(key: jax.Array, state: State, actions: jax.Array, params: Params):
     """``step``, then start the arena's next episode (``next_episode``) if this one ended.
 

@@ -80,22 +80,28 @@ def batched(fn, full: tuple[int, ...] = ()):
     front. Nested ``vmap``s batch the rule's program as any other (the arena axis stays innermost).
     """
 
+    # Traced through ``jax.jit``: JAX keeps the traced program per argument shapes, so every later
+    # program of the process that runs ``fn`` on the same shapes reuses it instead of tracing the
+    # whole sub-step again (``custom_vmap`` traces the unbatched ``fn`` at every call, the rule
+    # traces the lane version); XLA inlines the call, so the compiled program is the same.
+    traced = jax.jit(fn)
+
     @custom_vmap
     def wrapped(*args):
-        return fn(*args)
+        return traced(*args)
 
     @wrapped.def_vmap
     def rule(axis_size, in_batched, *args):
         if jax.default_backend() != "cpu":  # measured: the lanes pay on XLA:CPU only (see below)
             axes = jax.tree.map(lambda b: 0 if b else None, tuple(in_batched))
-            out = jax.vmap(fn, in_axes=axes)(*args)
+            out = jax.vmap(traced, in_axes=axes)(*args)
             return out, jax.tree.map(lambda _: True, out)
         def to_lanes(x, is_batched, width):
             return jnp.moveaxis(x, 0, -1) if is_batched else jnp.broadcast_to(x[..., None], x.shape + (width,))
 
         lanes = tuple(jax.tree.map(functools.partial(to_lanes, width=axis_size if i in full else 1), a, b)
                       for i, (a, b) in enumerate(zip(args, in_batched, strict=True)))
-        out = fn(*lanes)
+        out = traced(*lanes)
         return jax.tree.map(lambda x: jnp.moveaxis(x, -1, 0), out), jax.tree.map(lambda _: True, out)
 
     return functools.wraps(fn)(wrapped)

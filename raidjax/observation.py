@@ -13,6 +13,7 @@ from raidjax.combat import F_SPEED, F_TEAM, effect_table, haste_factor, skill_ta
 from raidjax.lanes import pick
 from raidjax.reference_observation import ReferenceObservation, observe_reference
 from raidjax.types import CAST_1, HALF_ARENA, HIT_ATTACK, TRIGGER_PASSIVE, Observation, Params, State
+from raidjax.utils import traced_once
 
 POS_SCALE, COOL_SCALE, RANGE_SCALE, DAMAGE_SCALE, CAST_SCALE = 20.0, 5.0, 20.0, 100.0, 5.0
 
@@ -39,6 +40,7 @@ def action_mask(state: State, params: Params) -> jnp.ndarray:
     return jnp.concatenate([move, casts[:n_players]], axis=-1)
 
 
+@traced_once
 def observe(state: State, params: Params, table: jax.Array | None = None) -> Observation | ReferenceObservation:
     """Build every player's observation.
 

@@ -11,6 +11,15 @@ import jax.numpy as jnp
 import numpy as np
 
 
+def traced_once(fn):
+    """``fn`` through ``jax.jit``: JAX keeps its traced program per argument shapes (and static
+    content such as ``EnvConfig``), so each program of a process that calls it again, under ``vmap``,
+    ``scan`` or another ``jit``, reuses that trace instead of running the Python again; tracing the
+    game is a large part of compiling a program that plays it. XLA inlines the nested call, so the
+    compiled program is the same; called eagerly, ``fn`` runs as one compiled program."""
+    return jax.jit(fn)
+
+
 def dice_seeds(key: jax.Array) -> jax.Array:
     """The two ``uint32`` words ``hash_dice`` hashes with: ``uint32[2]`` from ``key``."""
     return jax.random.bits(key, (2,), jnp.uint32)

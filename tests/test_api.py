@@ -239,3 +239,27 @@ def test_random_spawns_draw_positions_and_headings_in_each_half_and_keep_other_d
     # The target is the nearest player from the drawn spawns.
     d = np.linalg.norm(pos[:, :-1] - pos[:, -1:], axis=-1)
     np.testing.assert_array_equal(np.asarray(s.target)[:, -1], d.argmin(-1))
+
+
+def test_programs_around_the_game_trace_its_sub_step_once(monkeypatch):
+    """``raidjax.utils.traced_once``: a second program that plays the same arenas (here a scan of
+    ``step_autoreset``, after a plain vmapped ``step``) reuses the traced sub-step."""
+    from raidjax import env
+
+    traced = []
+    real = env.substep
+    monkeypatch.setattr(env, "substep", lambda *a: traced.append(1) or real(*a))
+    n = 7  # an arena count no other test uses, so the lane program is traced here first
+    p = jax.tree.map(lambda x: jnp.broadcast_to(x, (n,) + x.shape), raidjax.make_params())
+    keys = jax.random.split(KEY, n)
+    _, s = jax.vmap(raidjax.reset)(keys, p)
+    a = jnp.zeros((n, 3), jnp.int32)
+    jax.jit(jax.vmap(raidjax.step)).lower(keys, s, a, p)
+    first = len(traced)
+    assert first in (1, 2)  # the lane program, and the per-arena one unless an earlier test traced it
+
+    def scan(s):
+        return jax.lax.scan(lambda s, _: (jax.vmap(raidjax.step_autoreset)(keys, s, a, p)[1], None), s, None, 3)[0]
+
+    jax.jit(scan).lower(s)
+    assert len(traced) == first

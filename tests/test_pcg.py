@@ -187,6 +187,36 @@ def test_pc1_on_the_pooled_axis_and_on_each_groups_own_axis():
     assert d["a"]["pc1_own_sd"] == pytest.approx(0.5) and d["b"]["pc1_own_sd"] == pytest.approx(0.5)
 
 
+def test_a_step_from_the_placeholder_is_the_reset():
+    """``pcg.env.awaiting_reset``: ``step_autoreset`` on it plays exactly ``reset``'s episode start
+    (same keys, same measurement), pays nothing and is marked invalid."""
+    p = pcg.make_pcg_params(n_games=4)
+    key = jax.random.key(3)
+    _, waiting = pcg.env.awaiting_reset(p)
+    assert bool(waiting.done)
+    obs, state, reward, done, info = jax.jit(pcg.step_autoreset)(key, waiting, jnp.full(4, 4, jnp.int32), p)
+    obs0, state0 = jax.jit(pcg.reset)(key, p)
+    np.testing.assert_array_equal(np.asarray(obs), np.asarray(obs0))
+    for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(state0), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert float(reward) == 0.0 and not bool(done) and not bool(info["valid"])
+
+
+def test_ppo_init_plays_no_game(monkeypatch):
+    """PPO-PCGRL's initial program holds no playtest (its arenas wait on the placeholder)."""
+    from trainers.config import PPOConfig
+    from trainers.ppo_pcgrl import make_train
+
+    def no_game(*_):
+        raise AssertionError("init measured a skill")
+
+    monkeypatch.setattr(pcg.env, "measure", no_game)
+    train = make_train(PPOConfig(n_arenas=2, n_steps=3, total_steps=12, n_minibatches=2, hidden=8, layers=1,
+                                 n_games=2))
+    runner = jax.eval_shape(train.init, jax.random.key(0))
+    assert runner["env_state"].done.shape == (2,)
+
+
 # The plain learner (no pooling, no goal) trains and round-trips its checkpoints bit-for-bit in
 # tests/test_faults_ppo.py; this covers the two options.
 @pytest.mark.parametrize("pool,goal", [(True, 0.5)])

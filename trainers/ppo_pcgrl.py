@@ -101,8 +101,9 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
 
     Returns:
         ``train(key, target=None) -> (runner, metrics)`` (jittable, vmappable), with helpers as
-        attributes: ``train.init(key, target) -> runner`` and ``train.update(runner, target) ->
-        (runner, metrics)`` (one PPO update). ``runner`` is a dict pytree (``params``,
+        attributes: ``train.init(key, target) -> runner`` (every arena on an ended placeholder,
+        ``raidjax.pcg.env.awaiting_reset``: its first rollout step is its reset) and
+        ``train.update(runner, target) -> (runner, metrics)`` (one PPO update). ``runner`` is a dict pytree (``params``,
         ``opt_state``, ``env_state``, ``obs``, ``key`` data, ``update``); ``metrics`` holds
         per-update scalars (leading axis ``num_updates`` in ``train``).
 
@@ -128,7 +129,10 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
         p = env_params(config, target, tester, tester_weights)
         k_net, k_env, k_run = jax.random.split(key, 3)
         params = net.init(k_net, jnp.zeros((pcg.env.obs_size(p),)))
-        obs, env_state = jax.vmap(lambda k: pcg.reset(k, p))(jax.random.split(k_env, config.n_arenas))
+        # Every arena starts on an ended placeholder, so the first rollout step is its reset
+        # (measured, not trained on): this program plays no game and compiles in seconds.
+        del k_env  # kept so that the other keys are as they were
+        obs, env_state = jax.vmap(lambda _: pcg.env.awaiting_reset(p))(jnp.arange(config.n_arenas))
         return {"params": params, "opt_state": tx.init(params), "env_state": env_state, "obs": obs,
                 "key": jax.random.key_data(k_run), "update": jnp.int32(0)}
 

@@ -365,6 +365,17 @@ def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) ->
     return observe_pcg(state, params), state
 
 
+def awaiting_reset(params: PCGParams) -> tuple[jax.Array, PCGState]:
+    """An ended placeholder episode, unmeasured: ``step_autoreset`` on it starts (and measures) a
+    real one, as ``reset`` would, in a call whose transition is marked invalid. A learner that
+    starts its arenas here holds no playtest in its initial program, which then compiles in
+    seconds instead of compiling the whole game. Returns ``(obs, state)`` as ``reset``."""
+    skill = low(params.space)
+    state = _started(skill, jnp.float32(params.target_low), jnp.float32(0.0), skill, params).replace(
+        done=jnp.bool_(True))
+    return observe_pcg(state, params), state
+
+
 def advance(state: PCGState, skill: jax.Array, w: jax.Array, params: PCGParams) -> tuple[PCGState, jax.Array]:
     """Book one edit whose skill ``float32[4]`` measured win rate ``w`` (``float32[]``, over
     ``n_games`` games): count it, pool ``w`` with the earlier games when ``pool_repeats`` and the

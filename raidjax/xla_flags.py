@@ -34,7 +34,6 @@ from __future__ import annotations
 import functools
 import json
 import os
-import tempfile
 import warnings
 from pathlib import Path
 
@@ -105,11 +104,10 @@ def known_flags(flags: tuple[str, ...] = RECOMMENDED) -> tuple[str, ...]:
     if isinstance(stored, dict) and isinstance(stored.get(key), list):
         return tuple(f for f in flags if f in stored[key])
     known = _probe(flags)
-    try:  # atomically: another process may be writing the same file
-        cache.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile("w", dir=cache.parent, delete=False, suffix=".tmp") as f:
-            json.dump({**(stored if isinstance(stored, dict) else {}), key: list(known)}, f)
-        os.replace(f.name, cache)
+    from raidjax.io import atomic_write  # another process may be writing the same file
+
+    try:
+        atomic_write(cache, json.dumps({**(stored if isinstance(stored, dict) else {}), key: list(known)}))
     except OSError:  # an unwritable cache only costs the probe next time
         pass
     return known
@@ -146,9 +144,10 @@ def use_recommended_xla_flags() -> bool:
     current = os.environ.get("XLA_FLAGS", "")
     if with_recommended(current) == current:  # all set already (a child of a process that opted in)
         return True
-    if not known_flags():
+    known = known_flags()
+    if not known:
         return False
-    wanted = with_recommended(current, known_flags())
+    wanted = with_recommended(current, known)
     if wanted == current:
         return True
     from jax._src import xla_bridge  # no public query for "has the backend started" in jax 0.4-0.10

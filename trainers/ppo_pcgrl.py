@@ -103,9 +103,9 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
         ``train(key, target=None) -> (runner, metrics)`` (jittable, vmappable), with helpers as
         attributes: ``train.init(key, target) -> runner`` (every arena on an ended placeholder,
         ``raidjax.pcg.env.awaiting_reset``: its first rollout step is its reset) and
-        ``train.update(runner, target) -> (runner, metrics)`` (one PPO update). ``runner`` is a dict pytree (``params``,
-        ``opt_state``, ``env_state``, ``obs``, ``key`` data, ``update``); ``metrics`` holds
-        per-update scalars (leading axis ``num_updates`` in ``train``).
+        ``train.update(runner, target) -> (runner, metrics)`` (one PPO update). ``runner`` is a
+        dict pytree (``params``, ``opt_state``, ``env_state``, ``obs``, ``key`` data, ``update``);
+        ``metrics`` holds per-update scalars (leading axis ``num_updates`` in ``train``).
 
     Warns (``RuntimeWarning``) on CPU when ``XLA_FLAGS`` lacks
     ``--xla_cpu_enable_concurrency_optimized_scheduler=false``: several learners vmapped together
@@ -132,7 +132,8 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
         # Every arena starts on an ended placeholder, so the first rollout step is its reset
         # (measured, not trained on): this program plays no game and compiles in seconds.
         del k_env  # kept so that the other keys are as they were
-        obs, env_state = jax.vmap(lambda _: pcg.env.awaiting_reset(p))(jnp.arange(config.n_arenas))
+        obs, env_state = jax.tree.map(lambda x: jnp.broadcast_to(x, (config.n_arenas,) + x.shape),
+                                      pcg.env.awaiting_reset(p))
         return {"params": params, "opt_state": tx.init(params), "env_state": env_state, "obs": obs,
                 "key": jax.random.key_data(k_run), "update": jnp.int32(0)}
 

@@ -369,7 +369,8 @@ def awaiting_reset(params: PCGParams) -> tuple[jax.Array, PCGState]:
     """An ended placeholder episode, unmeasured: ``step_autoreset`` on it starts (and measures) a
     real one, as ``reset`` would, in a call whose transition is marked invalid. A learner that
     starts its arenas here holds no playtest in its initial program, which then compiles in
-    seconds instead of compiling the whole game. Returns ``(obs, state)`` as ``reset``."""
+    seconds instead of compiling the whole game. Returns ``(obs, state)``: ``float32[obs_size]`` and a
+    ``PCGState`` with ``done`` true, as ``reset``'s."""
     skill = low(params.space)
     state = _started(skill, jnp.float32(params.target_low), jnp.float32(0.0), skill, params).replace(
         done=jnp.bool_(True))

@@ -10,11 +10,12 @@ import datetime
 import os
 import platform
 import subprocess
-import tempfile
 from functools import partial
 from pathlib import Path
 
 import jax
+
+from raidjax.files import atomic_write  # noqa: F401  (callers find every host helper here)
 
 
 def source_commit() -> str | None:
@@ -57,28 +58,6 @@ def fmt_seconds(s: float) -> str:
     if s >= 3600:
         return f"{int(s // 3600)}h{int(s % 3600 // 60):02d}m"
     return f"{int(s // 60)}m{int(s % 60):02d}s" if s >= 60 else f"{s:.0f}s"
-
-
-def atomic_write(path: str | Path, data: str | bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``, so
-    a reader sees the old file or the new one, never half of one. Returns ``path``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data.encode() if isinstance(data, str) else data)
-            f.flush()
-            os.fsync(f.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual mode
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):

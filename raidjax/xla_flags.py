@@ -104,7 +104,7 @@ def known_flags(flags: tuple[str, ...] = RECOMMENDED) -> tuple[str, ...]:
     if isinstance(stored, dict) and isinstance(stored.get(key), list):
         return tuple(f for f in flags if f in stored[key])
     known = _probe(flags)
-    from raidjax.io import atomic_write  # another process may be writing the same file
+    from raidjax.files import atomic_write  # another process may be writing the same file
 
     try:
         atomic_write(cache, json.dumps({**(stored if isinstance(stored, dict) else {}), key: list(known)}))

@@ -222,6 +222,29 @@ def test_strict_episodes_keep_the_last_measurement():
     assert loose["reached"][loose["edits"] < 3].all()
 
 
+def test_generation_episodes_are_reset_then_step_key_for_key():
+    """``generate`` plays every measurement, the start's included, in its loop's one playtest; its
+    episodes are still ``env.reset`` followed by ``env.step``, key for key (the key schedule of
+    ``quality._generate``: reset keys from the first third of the key, edit i's policy and playtest
+    keys from ``fold_in(second, i)``). Strict episodes: every one makes all 3 edits. Shares the
+    compiled generation of the strict test above (same arguments)."""
+    game = pcg.base_game().replace(config=raidjax.EnvConfig(max_decisions=60, n_substeps=1))
+    params = pcg.make_pcg_params(target=0.0, n_games=2, max_edits=3, strict_length=True).replace(game=game)
+    key, n = jax.random.PRNGKey(0), 12
+    g = pm.generate(key, pcg.pcg_rd, params, targets=(0.0,), episodes=n, eval_games=0)
+    k_reset, k_loop, _ = jax.random.split(key, 3)
+    obs, state = jax.jit(jax.vmap(lambda k: pcg.env.reset(k, params, jnp.float32(0.0))))(jax.random.split(k_reset, n))
+    step = jax.jit(jax.vmap(lambda k, s, a: pcg.env.step(k, s, a, params)))
+    edit = jax.vmap(lambda k, o, s: pcg.pcg_rd(None, k, o, s, params))
+    for i in range(3):
+        ks = jax.random.split(jax.random.fold_in(k_loop, i), 2 * n)
+        obs, state, *_ = step(ks[n:], state, edit(ks[:n], obs, state))
+    np.testing.assert_array_equal(g["skill"], state.skill)
+    np.testing.assert_array_equal(g["gen_win_rate"], state.win_rate)
+    np.testing.assert_array_equal(g["edits"], state.edits)
+    assert len(set(np.round(g["gen_win_rate"] * 2).tolist())) > 1  # the measurements differ: a real check
+
+
 def test_the_observation_comparison_changes_only_the_senses():
     scale = b1.SCALES["smoke"]
     paper, ours = b1.config_of(scale, "paper"), b1.config_of(scale, "paper-raidjax-senses")

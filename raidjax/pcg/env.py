@@ -359,10 +359,19 @@ def reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) ->
     Returns:
         ``(obs, state)``: ``float32[obs_size]`` and ``PCGState``.
     """
+    k_play, state = unmeasured_reset(key, params, target)
+    state = state.replace(win_rate=measure(k_play, params, state.skill))
+    return observe_pcg(state, params), state
+
+
+def unmeasured_reset(key: jax.Array, params: PCGParams, target: jax.Array | None = None) -> tuple[jax.Array, PCGState]:
+    """``reset``'s draws without its playtest, for a program that plays every measurement in one
+    place (``raidjax.pcg.quality.generate``): returns ``(k_play, state)``, the key ``reset``
+    measures the skill with and the new episode's ``PCGState`` with ``win_rate`` 0 (unmeasured).
+    ``reset(key, ...)``'s state is this state with ``win_rate = measure(k_play, params, state.skill)``."""
     k_new, k_play = jax.random.split(key)
     skill, target, goal = _fresh(k_new, params, target)
-    state = _started(skill, target, measure(k_play, params, skill), goal, params)
-    return observe_pcg(state, params), state
+    return k_play, _started(skill, target, jnp.float32(0.0), goal, params)
 
 
 def awaiting_reset(params: PCGParams) -> tuple[jax.Array, PCGState]:

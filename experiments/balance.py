@@ -183,15 +183,26 @@ def train_specialists(rf: RunFolder, scale: Scale, team: Team, skills: np.ndarra
     return done.state.params["actor"]
 
 
+def testers(rf: RunFolder) -> dict[str, tuple]:
+    """The two playtesting teams as ``{name: (policy, weights)}`` (``GENERATORS``' names): the
+    MA-POCA tester (seed 0, sampled actions) and PT-HR, both as ``raidjax.policies.OrHeuristic``
+    of the tester, so that every playtesting program (tester check, training, generation,
+    cross-play) compiles once for the two teams instead of once per team."""
+    policy, weights = load_policy(rf.out / "tester", deterministic=False)
+    both = raidjax.policies.OrHeuristic(policy)
+    return {"learned": (both, both.weights(weights, False)), "scripted": (both, both.weights(weights, True))}
+
+
 def stage_tester_check(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
     policy, weights = load_policy(rf.out / "tester", deterministic=False)
+    teams = testers(rf)
     key = jax.random.PRNGKey(seed + 101)
     space = team.space
     grid = pcg.env.box_grid(scale.grid, space) if space.size <= 4 else pcg.env.box_probes(space)
     held = heldout_skills(scale.heldout, space)
     both = np.concatenate([grid, held])  # one program per tester for the grid and the held-out skills
-    learned, tester_win = np.split(win_rates(key, both, scale.grid_games, team, policy, weights), [len(grid)])
-    scripted, scripted_win = np.split(win_rates(key, both, scale.grid_games, team), [len(grid)])
+    learned, tester_win = np.split(win_rates(key, both, scale.grid_games, team, *teams["learned"]), [len(grid)])
+    scripted, scripted_win = np.split(win_rates(key, both, scale.grid_games, team, *teams["scripted"]), [len(grid)])
     rf.write_csv("tester_grid", [{**dict(zip(space.names, map(float, sk), strict=True)),
                                   "learned": float(a), "scripted": float(b)}
                                  for sk, a, b in zip(grid, learned, scripted, strict=True)])
@@ -212,18 +223,17 @@ def stage_tester_check(rf: RunFolder, scale: Scale, team: Team, seed: int) -> di
 
 def train_generator(rf: RunFolder, scale: Scale, team: Team, name: str, seed: int) -> dict:
     """Train generator ``name`` (``trainers.runs.run_ppo_pcgrl``, no evaluation) in
-    ``DIR/generator_<name>``: the scale's PPO fields and the team; ``learned`` playtests with the
-    MA-POCA tester."""
+    ``DIR/generator_<name>``: the scale's PPO fields and the team; it playtests with ``testers``'
+    team ``name`` (the MA-POCA tester or PT-HR, one compiled training program for the two)."""
     config = PRESETS["ppo_pcgrl"][scale.preset].replace(**scale.ppo, players=team.players, parameters=team.parameters)
     out = rf.out / f"generator_{name}"
     return run_ppo_pcgrl(config, out, preset=scale.preset, seed=seed, chunk=scale.chunk,
-                         evaluation={"eval_episodes": 0}, tester=rf.out / "tester" if name == "learned" else None,
+                         evaluation={"eval_episodes": 0}, tester=testers(rf)[name],
                          resume=(out / "config.json").exists())
 
 
 def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
-    policy, weights = load_policy(rf.out / "tester", deterministic=False)
-    testers = {"learned": {"tester": policy, "tester_weights": weights}, "scripted": {}}
+    teams = testers(rf)
     out = {k: [] for k in ("generator", "target", "skill", "gen_win_rate", "edits", "reached", "learned", "scripted")}
     for g, name in enumerate(GENERATORS):
         ckpt = rf.out / f"generator_{name}" / "checkpoints"
@@ -233,15 +243,14 @@ def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
         _, labels = target_groups(config, groups if config.observe_target else groups // len(pcg.quality.TARGETS))
         gens = generate_episodes(jax.random.PRNGKey(seed + 200 + g), config, w, labels, gen_games=scale.gen_games,
                         greedy=False, episodes=scale.episodes, eval_games=0, baselines=False,
-                        max_edits=scale.max_edits, **testers[name])["PPO"]
+                        max_edits=scale.max_edits, tester=teams[name][0], tester_weights=teams[name][1])["PPO"]
         n = len(gens["target"])
         out["generator"].append(np.full(n, g))
         for k in ("target", "skill", "gen_win_rate", "edits", "reached"):
             out[k].append(gens[k])
     data = {k: np.concatenate(v) for k, v in out.items() if v}
-    for t, kw in testers.items():  # both testers play every final skill, with the same keys
-        data[t] = win_rates(jax.random.PRNGKey(seed + 300), data["skill"], scale.eval_games, team,
-                            kw.get("tester", raidjax.policies.heuristic), kw.get("tester_weights"))
+    for t, (policy, weights) in teams.items():  # both testers play every final skill, with the same keys
+        data[t] = win_rates(jax.random.PRNGKey(seed + 300), data["skill"], scale.eval_games, team, policy, weights)
     buf = io.BytesIO()
     np.savez(buf, generators=np.asarray(GENERATORS), parameters=np.asarray(team.space.names), **data)
     atomic_write(rf.out / "generated.npz", buf.getvalue())

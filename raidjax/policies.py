@@ -5,6 +5,9 @@ A policy is ``policy(key, obs, state, params) -> int32[P]`` for one arena.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
+
 import jax
 import jax.numpy as jnp
 
@@ -64,6 +67,37 @@ def script(which: jax.Array, key: jax.Array, obs: Observation, state: State, par
         ``int32[P]`` actions: those of ``heuristic`` or of ``random`` with the same key.
     """
     return jnp.where(which == 0, heuristic(key, obs, state, params), random(key, obs, state, params))
+
+
+@dataclasses.dataclass(frozen=True)
+class OrHeuristic:
+    """A policy with weights, ``policy(weights, key, obs, state, params) -> int32[P]``, or PT-HR,
+    chosen by data: ``OrHeuristic(policy)`` is called with weights ``(scripted, policy_weights)``
+    (``scripted``: ``bool[]``, traced; see ``weights``). One compiled program then plays both
+    teams, e.g. a learned tester and PT-HR in the balancing loop (``experiments.balance``), which
+    would otherwise compile every playtesting program twice.
+
+    With ``scripted`` unbatched (the weights bound to a playtest, as usual) the choice is a
+    ``lax.cond``: PT-HR does not run the network. The policy's ``senses`` (if any) are this
+    wrapper's, so PT-HR plays under them too; a ``heuristic`` team acts the same under either.
+    """
+
+    policy: Callable
+
+    @property
+    def senses(self) -> str | None:
+        return getattr(self.policy, "senses", None)
+
+    @staticmethod
+    def weights(policy_weights, scripted: bool):
+        """The weights that make ``OrHeuristic(policy)`` play ``policy`` with ``policy_weights``
+        (``scripted=False``) or PT-HR (``True``; ``policy_weights`` only give the shapes)."""
+        return jnp.bool_(scripted), policy_weights
+
+    def __call__(self, weights, key: jax.Array, obs: Observation, state: State, params: Params) -> jax.Array:
+        scripted, policy_weights = weights
+        return jax.lax.cond(scripted, lambda: heuristic(key, obs, state, params),
+                            lambda: self.policy(policy_weights, key, obs, state, params).astype(jnp.int32))
 
 
 BY_NAME = {"random": random, "heuristic": heuristic, "noop": noop}

@@ -141,22 +141,31 @@ def test_heuristic_and_noop_policies(ref_params):
     assert policies.noop(jax.random.key(0), obs, s, ref_params).tolist() == [0, 0, 0]
 
 
-def test_script_plays_pt_hr_or_pt_rd_from_one_program(ref_params, reference_results):
-    """``policies.script`` with index 0 plays the fixture's PT-HR games game for game; with index 1
-    it draws PT-RD's actions from the same key."""
+def test_script_and_or_heuristic_choose_their_team_by_data_in_one_program(ref_params, reference_results):
+    """``policies.script`` (index 0: PT-HR, 1: PT-RD) and ``policies.OrHeuristic`` (a policy with
+    weights, or PT-HR) choose by a traced argument: decision by decision they return the chosen
+    team's actions, and ``OrHeuristic(script)`` plays the fixture's PT-HR games game for game when
+    told to play PT-HR, and PT-RD's games otherwise, from one compiled program."""
     from raidjax.playtest import _playtest
 
-    before = _playtest._cache_size()
-    hr = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, policies.script, N, weights=jnp.int32(0)))
-    for name in hr:
-        np.testing.assert_array_equal(hr[name], reference_results[name], err_msg=name)
-    raidjax.playtest(jax.random.key(0), ref_params, policies.script, N, weights=jnp.int32(1))
-    assert _playtest._cache_size() == before + 1
+    both = policies.OrHeuristic(policies.script)
     obs, s = RESET(jax.random.key(0), ref_params)
     for k in range(8):
         key = jax.random.key(k)
-        np.testing.assert_array_equal(policies.script(jnp.int32(1), key, obs, s, ref_params),
-                                      policies.random(key, obs, s, ref_params))
+        rd, hr = policies.random(key, obs, s, ref_params), policies.heuristic(key, obs, s, ref_params)
+        np.testing.assert_array_equal(policies.script(jnp.int32(1), key, obs, s, ref_params), rd)
+        np.testing.assert_array_equal(policies.script(jnp.int32(0), key, obs, s, ref_params), hr)
+        np.testing.assert_array_equal(both(both.weights(jnp.int32(1), False), key, obs, s, ref_params), rd)
+        np.testing.assert_array_equal(both(both.weights(jnp.int32(1), True), key, obs, s, ref_params), hr)
+    before = _playtest._cache_size()
+    scripted = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, both, N,
+                                               weights=both.weights(jnp.int32(1), True)))
+    for name in scripted:
+        np.testing.assert_array_equal(scripted[name], reference_results[name], err_msg=name)
+    random_team = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, both, N,
+                                                  weights=both.weights(jnp.int32(1), False)))
+    assert _playtest._cache_size() == before + 1
+    assert not np.array_equal(random_team["length"], scripted["length"])  # PT-RD's games are not PT-HR's
 
 
 def test_playtest_accepts_raw_and_typed_keys():

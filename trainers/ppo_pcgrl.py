@@ -103,7 +103,9 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
         ``train(key, target=None) -> (runner, metrics)`` (jittable, vmappable), with helpers as
         attributes: ``train.init(key, target) -> runner`` (every arena on an ended placeholder,
         ``raidjax.pcg.env.awaiting_reset``: its first rollout step is its reset) and
-        ``train.update(runner, target) -> (runner, metrics)`` (one PPO update). ``runner`` is a
+        ``train.update(runner, target, weights=tester_weights) -> (runner, metrics)`` (one PPO
+        update; ``weights``: the tester's, an argument so that a program given them as one plays
+        other weights of the same shapes without compiling again). ``runner`` is a
         dict pytree (``params``, ``opt_state``, ``env_state``, ``obs``, ``key`` data, ``update``);
         ``metrics`` holds per-update scalars (leading axis ``num_updates`` in ``train``).
 
@@ -137,8 +139,8 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
         return {"params": params, "opt_state": tx.init(params), "env_state": env_state, "obs": obs,
                 "key": jax.random.key_data(k_run), "update": jnp.int32(0)}
 
-    def update(runner, target=None):
-        p = env_params(config, target, tester, tester_weights)
+    def update(runner, target=None, weights=tester_weights):
+        p = env_params(config, target, tester, weights)
         key = jax.random.wrap_key_data(runner["key"])
         key, k_roll, k_perm = jax.random.split(key, 3)
         params = runner["params"]

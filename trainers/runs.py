@@ -95,10 +95,13 @@ def ppo_learner(config: PPOConfig, keys: jax.Array, targets: jax.Array, updates_
     """
     trained = make_train(config, **tester)
     steps = config.n_arenas * config.n_steps
+    # The tester's weights are an argument of the chunk, not constants in it: the balancing loop's
+    # two generators (policies.OrHeuristic, two weights) then share one compiled program.
+    tester_weights = tester.get("tester_weights")
 
     def chunk(n: int):
-        def run(state, tg):
-            one = lambda r, t: jax.lax.scan(lambda rr, _: trained.update(rr, t), r, None, n)
+        def run(state, tg, tw):
+            one = lambda r, t: jax.lax.scan(lambda rr, _: trained.update(rr, t, tw), r, None, n)
             return jax.vmap(one)(state, tg)
         return run
 
@@ -109,7 +112,8 @@ def ppo_learner(config: PPOConfig, keys: jax.Array, targets: jax.Array, updates_
         return (f"reward {r['reward']:.2f}  final_err {r['final_error']:.3f}  edits {r['edits']:.1f}  "
                 f"entropy {r['entropy']:.2f}")
 
-    return Learner(init=jax.vmap(trained.init), init_args=(keys, targets), chunk=chunk, chunk_args=(targets,),
+    return Learner(init=jax.vmap(trained.init), init_args=(keys, targets), chunk=chunk,
+                   chunk_args=(targets, tester_weights),
                    policy=lambda s: s["params"], rows=rows, describe=describe, config=config.to_dict(),
                    n_runs=len(keys), num_updates=config.num_updates, updates_per_chunk=updates_per_chunk,
                    steps_per_update=steps, compiler_options=compiler_options)
@@ -201,7 +205,7 @@ def _rounded(x, key: str = ""):
 
 def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", seeds: int = 1, seed: int = 0,
                   chunk: int = 4, resume: bool = False, max_chunks: int | None = None,
-                  evaluation: dict | None = None, tester: str | Path | None = None) -> dict:
+                  evaluation: dict | None = None, tester: str | Path | tuple | None = None) -> dict:
     """Train PPO-PCGRL in the run folder ``out`` (or resume it), then measure it beside PCG-HR and
     PCG-RD.
 
@@ -213,7 +217,8 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
         evaluation: ``eval_episodes`` (0 skips it), ``eval_gen_games``, ``eval_games``,
             ``greedy``, ``no_baselines`` (defaults 8, 100, 300, False, False); may change on resume.
         tester: a trained MA-POCA run folder playing the playtests (seed 0, sampled actions)
-            instead of PT-HR, in training and evaluation.
+            instead of PT-HR, in training and evaluation; or a loaded ``(policy, weights)`` pair
+            (``trainers.mapoca.load_policy``, ``raidjax.policies.OrHeuristic``).
 
     Returns:
         The result (also ``out/result.json`` and the last stdout line): ``mean_error`` (PPO),
@@ -227,10 +232,13 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
                 "config": config.to_dict(), "evaluation": ev}
     team = {}
     if tester is not None:  # loaded (and checked) before the run folder is touched
-        policy, weights = load_policy(tester, seed=0, deterministic=False)
+        loaded = isinstance(tester, tuple)
+        policy, weights = tester if loaded else load_policy(tester, seed=0, deterministic=False)
         team = {"tester": policy, "tester_weights": weights}
         # the weights' digest decides whether a resume continues the same run; the folder may move
-        settings.update(tester=checkpoint.digest(weights), tester_run=str(Path(tester).resolve()))
+        settings.update(tester=checkpoint.digest(weights))
+        if not loaded:
+            settings.update(tester_run=str(Path(tester).resolve()))
     rf = RunFolder(out, settings, resume=resume, ignore=("evaluation", "tester_run"))
     if rf.finished:
         return rf.already_finished()

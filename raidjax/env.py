@@ -81,7 +81,7 @@ def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
         recharge_left=jnp.zeros((u_n, s_n)),
         basic_cooldown=jnp.zeros(u_n),
         target=jnp.full(u_n, n_players, jnp.int32),
-        orbit_sign=jnp.where(jax.random.bernoulli(k_sign, 0.5, (u_n,)), 1.0, -1.0),
+        orbit_sign=jnp.where(jax.random.bernoulli(k_sign, 0.5, (u_n,)), jnp.float32(1.0), jnp.float32(-1.0)),
         clock=jax.random.uniform(k_clock, (), minval=0.0, maxval=2 * jnp.pi),
         projectiles=Projectiles(
             live=jnp.zeros(m, bool), kind=jnp.zeros(m, jnp.int32), pos=jnp.zeros((m, 2)),

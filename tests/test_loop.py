@@ -8,6 +8,7 @@ import json
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from trainers import checkpoint
 from trainers.loop import Learner, train
@@ -69,3 +70,19 @@ def test_a_finished_run_resumed_runs_no_chunk(tmp_path):
     assert done.finished and done.start_update == 4 and not any("compiled" in s for s in lines)
     assert len(_rows(tmp_path)) == 2
     assert jax.tree.leaves(done.state)[0].shape == (2,)
+
+
+def test_a_resumed_run_lowers_the_chunk_of_a_fresh_run(tmp_path):
+    """A restored state is committed to its device and a fresh one is not, which JAX lowers with and
+    without sharding annotations: a resumed run would compile its chunk again instead of reading it
+    from JAX's persistent compilation cache. ``train`` lowers both from the same shapes."""
+    from trainers.loop import _lowering_state
+
+    learner = counter(6, 2)
+    train(learner, tmp_path / "ckpt", tmp_path, log=lambda s: None, max_chunks=1)
+    restored, _, _ = checkpoint.restore(tmp_path / "ckpt", learner.abstract_state())
+    fresh = jax.jit(learner.init)()
+    program = lambda s: jax.jit(learner.chunk(2)).lower(s).as_text()
+    if program(restored) == program(fresh):
+        pytest.skip("this JAX lowers a restored and a fresh state alike")
+    assert program(_lowering_state(restored, 2)) == program(_lowering_state(fresh, 2))

@@ -24,7 +24,7 @@ from typing import Any
 import jax
 
 from raidjax.io import fmt_seconds
-from raidjax.sharding import put_batch
+from raidjax.sharding import batch_sharding, put_batch
 from trainers import checkpoint, metrics
 
 
@@ -96,6 +96,17 @@ class Trained:
     steps_per_s: float
 
 
+def _lowering_state(state, n_runs: int):
+    """What a chunk is lowered with: on one device (the runs not split, ``batch_sharding``) only
+    the shapes and dtypes of ``state``, since a restored state is committed to its device and a
+    fresh one is not, which gives the lowered program sharding annotations in one case only: the
+    same chunk would compile again on resume instead of being read from JAX's persistent
+    compilation cache. Split runs are lowered with their shardings."""
+    if batch_sharding(n_runs) is not None:
+        return state
+    return jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), state)
+
+
 def train(learner: Learner, ckpt_dir: str | Path, metrics_dir: str | Path, *, metrics_name: str = "metrics",
           log: Callable[[str], None] = print, checkpoint_every: int = 1, max_chunks: int | None = None,
           max_to_keep: int = 3) -> Trained:
@@ -132,7 +143,7 @@ def train(learner: Learner, ckpt_dir: str | Path, metrics_dir: str | Path, *, me
         if n not in compiled:
             t = time.perf_counter()
             compiled[n] = jax.jit(learner.chunk(n), donate_argnums=(0,) if learner.donate else ()).lower(
-                state, *learner.chunk_args).compile(learner.compiler_options)
+                _lowering_state(state, learner.n_runs), *learner.chunk_args).compile(learner.compiler_options)
             compile_s += time.perf_counter() - t
             log(f"compiled a {n}-update chunk in {fmt_seconds(time.perf_counter() - t)}")
         t = time.perf_counter()

@@ -1,7 +1,8 @@
 """Host-side plumbing shared by the simulator's commands, the trainers and the experiments (never
 traced): ``atomic_write`` (every file a user keeps), ``finite_json``, ``machine`` and ``fmt_seconds``
 (reports and progress lines), and the command-line helpers ``HelpFormatter``,
-``whole_number_arg``, ``number_arg``, ``check_output_file`` and ``run_cli``."""
+``whole_number_arg``, ``number_arg``, ``check_output_file`` and ``run_cli`` (with
+``use_compilation_cache``)."""
 
 from __future__ import annotations
 
@@ -172,16 +173,77 @@ def _exit_on_ctrl_c(line: str) -> None:
     threading.Thread(target=watch, name="raidjax-ctrl-c", daemon=True).start()
 
 
+COMPILATION_CACHE_BYTES = 1 << 30  # 1 GiB: a few hundred of raidjax's larger programs
+
+
+def use_compilation_cache(folder: str | Path | None = None, max_bytes: int = COMPILATION_CACHE_BYTES) -> Path | None:
+    """Keep this process's compiled programs for later ones: JAX's persistent compilation cache in
+    ``folder`` (default ``$XDG_CACHE_HOME/raidjax/jax``, i.e. ``~/.cache/raidjax/jax``). A command
+    run again, or resumed after an interruption, then reads its programs instead of compiling them
+    (JAX keeps the programs that took over a second to compile). Before use the folder is cut to
+    ``max_bytes``, the oldest files first. Every raidjax command line calls it (``run_cli``); call
+    it in your own scripts before the first JAX computation.
+
+    Returns:
+        The folder in use: JAX's own when one is set already (``JAX_COMPILATION_CACHE_DIR`` or
+        ``jax.config``), left as it is; ``None`` with ``RAIDJAX_COMPILATION_CACHE=0``.
+    """
+    if os.environ.get("RAIDJAX_COMPILATION_CACHE") == "0":
+        return None
+    current = os.environ.get("JAX_COMPILATION_CACHE_DIR") or _jax_cache_dir()
+    if current:
+        return Path(current)
+    if folder is None:
+        folder = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "raidjax" / "jax"
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        prune_folder(folder, max_bytes)
+    except OSError:  # an unwritable cache costs only the compiles
+        return None
+    jax.config.update("jax_compilation_cache_dir", str(folder))
+    return folder
+
+
+def _jax_cache_dir() -> str | None:
+    return getattr(jax.config, "jax_compilation_cache_dir", None)
+
+
+def prune_folder(folder: str | Path, max_bytes: int) -> int:
+    """Delete the oldest files (by modification time) of ``folder`` until the rest hold at most
+    ``max_bytes``; returns the bytes deleted. Files another process removes meanwhile are skipped."""
+    files = []
+    for f in Path(folder).iterdir():
+        try:
+            st = f.stat()
+        except OSError:
+            continue
+        if f.is_file():
+            files.append((st.st_mtime, st.st_size, f))
+    total, freed = sum(size for _, size, _ in files), 0
+    for _, size, f in sorted(files):
+        if total - freed <= max_bytes:
+            break
+        try:
+            f.unlink()
+            freed += size
+        except OSError:
+            pass
+    return freed
+
+
 def run_cli(main, errors: tuple[type[BaseException], ...] = (ValueError,), interrupted: str = "") -> None:
     """Run a command line's ``main()`` the way users expect: a user's mistake (``errors``) prints
     ``error: <message>`` on one line and exits 2; Ctrl-C prints one line (with ``interrupted``, e.g.
     how to resume) and exits 130. ``RAIDJAX_DEBUG=1`` re-raises with the traceback. Before
-    ``main`` runs, the process gets raidjax's recommended XLA flags (``raidjax.xla_flags``)."""
+    ``main`` runs, the process gets raidjax's recommended XLA flags (``raidjax.xla_flags``) and
+    the persistent compilation cache (``use_compilation_cache``)."""
     import sys
 
     from raidjax.xla_flags import use_recommended_xla_flags
 
     use_recommended_xla_flags()
+    use_compilation_cache()
     if not os.environ.get("RAIDJAX_DEBUG"):
         _exit_on_ctrl_c(f"interrupted{'; ' + interrupted if interrupted else ''}")
     try:

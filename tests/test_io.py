@@ -29,3 +29,33 @@ def test_source_commit_is_none_outside_a_git_checkout(monkeypatch, tmp_path):
     monkeypatch.setattr(io, "__file__", str(tmp_path / "io.py"))
     monkeypatch.setenv("GIT_CEILING_DIRECTORIES", str(tmp_path.parent))
     assert io.source_commit() is None
+
+
+def test_prune_folder_deletes_the_oldest_files_first(tmp_path):
+    import os
+
+    for i, name in enumerate(["old", "mid", "new"]):
+        (tmp_path / name).write_bytes(b"x" * 100)
+        os.utime(tmp_path / name, (1000 + i, 1000 + i))
+    assert io.prune_folder(tmp_path, 250) == 100
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mid", "new"]
+    assert io.prune_folder(tmp_path, 200) == 0
+    assert io.prune_folder(tmp_path, 0) == 200 and not list(tmp_path.iterdir())
+
+
+def test_use_compilation_cache_sets_a_folder_only_where_none_is_set(monkeypatch, tmp_path):
+    import jax
+
+    set_to = []
+    monkeypatch.setattr(jax.config, "update", lambda name, value: set_to.append((name, value)))
+    monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", str(tmp_path / "theirs"))  # the tests' own cache
+    assert io.use_compilation_cache(tmp_path / "ours") == tmp_path / "theirs" and not set_to
+    monkeypatch.delenv("JAX_COMPILATION_CACHE_DIR")
+    monkeypatch.setattr(io, "_jax_cache_dir", lambda: None)
+    (tmp_path / "ours").mkdir()
+    (tmp_path / "ours" / "stale").write_bytes(b"x" * 10)
+    assert io.use_compilation_cache(tmp_path / "ours", max_bytes=5) == tmp_path / "ours"
+    assert set_to == [("jax_compilation_cache_dir", str(tmp_path / "ours"))]
+    assert not (tmp_path / "ours" / "stale").exists()  # cut to max_bytes first
+    monkeypatch.setenv("RAIDJAX_COMPILATION_CACHE", "0")
+    assert io.use_compilation_cache(tmp_path / "ours") is None and len(set_to) == 1

@@ -270,10 +270,10 @@ def stage_evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int
                        + [("mixed", r) for r in TABLE_RANGES])
     pt_cells = [(kind, rg, sd) for kind, rg in contents_ranges for sd in range(scale.seeds)]
     pt_contents = _stack([content_of(kind, rg) for kind, rg, _ in pt_cells])
-    for name, pol in (("PT-HR", raidjax.policies.heuristic), ("PT-RD", raidjax.policies.random)):
+    for which, name in enumerate(("PT-HR", "PT-RD")):  # raidjax.policies.SCRIPTS: one program plays both
         key = jax.random.PRNGKey(base_seed + (999 if name == "PT-HR" else 998))
-        out = raidjax.playtest(key, pt_contents, pol, len(pt_cells) * scale.games,
-                               games_per_arena=chained)["outcome"]
+        out = raidjax.playtest(key, pt_contents, raidjax.policies.script, len(pt_cells) * scale.games,
+                               weights=jnp.int32(which), games_per_arena=chained)["outcome"]
         for (kind, rg, sd), o in zip(pt_cells, np.asarray(out).reshape(len(pt_cells), scale.games), strict=True):
             rows.append({"agent": name, "group": "scripted", "run": name, "seed": sd, "content": kind, "range": rg,
                          "win_rate": float(np.mean(o == 1)), "draw_rate": float(np.mean(o == 3)),

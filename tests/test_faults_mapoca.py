@@ -102,7 +102,8 @@ def cli(module, argv, capsys) -> tuple[int, str]:
 
 
 def test_refusals_are_one_line_and_touch_nothing(tmp_path, tiny_config, capsys):
-    args = ["--config", str(tiny_config), "--total-steps", "32", "--skill-range", "9", "--eval-games", "4"]
+    # The chain's training (128 steps): its programs are read from the compilation cache.
+    args = ["--config", str(tiny_config), "--total-steps", "128", "--skill-range", "9", "--eval-games", "4"]
     out = tmp_path / "run"
     first = mapoca_cli.main([*args, "--out", str(out)])
     assert 0.0 <= first["win_rate"] <= 1.0 and len(str(first["win_rate"])) <= 8  # 0.75, not 0.75000001
@@ -111,8 +112,8 @@ def test_refusals_are_one_line_and_touch_nothing(tmp_path, tiny_config, capsys):
 
     cases = [
         ([*args, "--out", str(out)], f"{out} already holds a run: pass --resume"),
-        ([*args, "--out", str(out), "--resume", "--total-steps", "64"],
-         "other settings (config.total_steps: saved 32, now 64)"),
+        ([*args, "--out", str(out), "--resume", "--total-steps", "256"],
+         "other settings (config.total_steps: saved 128, now 256)"),
         ([*args, "--out", str(tmp_path / "empty"), "--resume"], "holds no run to resume"),
         ([*args, "--out", str(out / "config.json")], "is a file; allowed: a folder"),
     ]

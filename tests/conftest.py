@@ -37,11 +37,11 @@ def ref_params() -> raidjax.Params:
     return raidjax.make_params()
 
 
-# The slowest files first (seconds per file on a 2-core machine like CI's, 2026-11-26): pytest-xdist hands
+# The slowest files first (seconds per file on a 2-core machine like CI's, 2026-11-26 evening): pytest-xdist hands
 # out whole files (``--dist loadfile``) in collection order, so starting the longest ones first
 # leaves no worker idle behind a long file at the end.
-SLOW_FIRST = ("test_balance.py", "test_faults_mapoca.py", "test_sharding.py", "test_faults_ppo.py",
-              "test_benchmark1.py", "test_pcg.py", "test_playtest.py", "test_benchmark2.py", "test_wrappers.py",
+SLOW_FIRST = ("test_balance.py", "test_sharding.py", "test_benchmark1.py", "test_faults_ppo.py",
+              "test_faults_mapoca.py", "test_pcg.py", "test_playtest.py", "test_benchmark2.py", "test_wrappers.py",
               "test_rules.py", "test_mapoca.py", "test_house.py", "test_protocols.py", "test_notebooks.py",
               "test_validation.py", "test_api.py", "test_mapoca_reference.py", "test_golden.py",
               "test_pcg_style.py", "test_lanes.py", "test_cli.py")

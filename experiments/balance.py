@@ -194,8 +194,8 @@ def testers(rf: RunFolder) -> dict[str, tuple]:
 
 
 def stage_tester_check(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
-    policy, weights = load_policy(rf.out / "tester", deterministic=False)
     teams = testers(rf)
+    policy = teams["learned"][0].policy  # the tester's architecture, played with each specialist's weights
     key = jax.random.PRNGKey(seed + 101)
     space = team.space
     grid = pcg.env.box_grid(scale.grid, space) if space.size <= 4 else pcg.env.box_probes(space)

@@ -1,4 +1,5 @@
-"""Files a user keeps: ``atomic_write``. A leaf module (standard library only), so that
+"""Files a user keeps: ``atomic_write``, and ``cache_folder`` (where raidjax keeps what it can
+recompute). A leaf module (standard library only), so that
 ``raidjax.xla_flags``, which runs before JAX starts, and ``raidjax.io``, which sets the flags for every
 command line, can both use it without importing each other. ``raidjax.io`` re-exports it."""
 
@@ -29,3 +30,9 @@ def atomic_write(path: str | Path, data: str | bytes) -> Path:
             os.unlink(tmp)
         raise
     return path
+
+
+def cache_folder() -> Path:
+    """raidjax's folder for what it can recompute (the XLA flags' probe, compiled programs):
+    ``$XDG_CACHE_HOME/raidjax``, by default ``~/.cache/raidjax``."""
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "raidjax"

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import jax
 
-from raidjax.files import atomic_write  # noqa: F401  (callers find every host helper here)
+from raidjax.files import atomic_write, cache_folder  # noqa: F401  (callers find every host helper here)
 
 
 def source_commit() -> str | None:
@@ -194,7 +194,7 @@ def use_compilation_cache(folder: str | Path | None = None, max_bytes: int = COM
     if current:
         return Path(current)
     if folder is None:
-        folder = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "raidjax" / "jax"
+        folder = cache_folder() / "jax"
     folder = Path(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)

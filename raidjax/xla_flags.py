@@ -37,6 +37,8 @@ import os
 import warnings
 from pathlib import Path
 
+from raidjax.files import atomic_write, cache_folder
+
 RECOMMENDED = ("--xla_cpu_experimental_ynn_fusion_type=", "--xla_cpu_enable_concurrency_optimized_scheduler=false",
                "--xla_cpu_use_fusion_emitters=false")
 
@@ -79,7 +81,7 @@ def _probe(flags: tuple[str, ...]) -> tuple[str, ...]:
 
 
 def _cache_file() -> Path:
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "raidjax" / "xla_flags.json"
+    return cache_folder() / "xla_flags.json"
 
 
 @functools.cache
@@ -104,9 +106,7 @@ def known_flags(flags: tuple[str, ...] = RECOMMENDED) -> tuple[str, ...]:
     if isinstance(stored, dict) and isinstance(stored.get(key), list):
         return tuple(f for f in flags if f in stored[key])
     known = _probe(flags)
-    from raidjax.files import atomic_write  # another process may be writing the same file
-
-    try:
+    try:  # atomically: another process may be writing the same file
         atomic_write(cache, json.dumps({**(stored if isinstance(stored, dict) else {}), key: list(known)}))
     except OSError:  # an unwritable cache only costs the probe next time
         pass

@@ -439,12 +439,11 @@ def step_autoreset(key: jax.Array, state: PCGState, action: jax.Array, params: P
         ``(obs, state, reward, done, info)`` as ``step``; a reset call pays 0, is not done and
         has ``info["valid"] = False``. ``info["final_error"]`` is ``|t - w|`` (meaningful where done).
     """
-    k_new, k_play = jax.random.split(key)
-    fresh_skill, fresh_target, fresh_goal = _fresh(k_new, params, None)
-    skill = jnp.where(state.done, fresh_skill, apply_action(state.skill, action, params.space))
+    k_play, fresh = unmeasured_reset(key, params)
+    skill = jnp.where(state.done, fresh.skill, apply_action(state.skill, action, params.space))
     w = measure(k_play, params, skill)
     edited, reward = advance(state, skill, w, params)
-    started = _started(skill, fresh_target, w, fresh_goal, params)
+    started = fresh.replace(win_rate=w)
     new = jax.tree.map(lambda a, b: jnp.where(state.done, a, b), started, edited)
     reward = jnp.where(state.done, 0.0, reward)
     info = {"win_rate": new.win_rate, "edits": new.edits, "reached": new.reached, "valid": ~state.done,

@@ -62,7 +62,7 @@ def main() -> None:
     def lane_substep(seeds, state, actions, params, table):  # one sub-step as ``env.advance`` runs it
         first = seeds.reshape(-1)[0]
         with lanes.gate(first != first + 1):
-            return substep(seeds, state, actions, params, table, n_ticks)
+            return substep(seeds, state, actions, params, combat.split_table(table, state.casting.shape[1]), n_ticks)
 
     program = lanes.batched(lane_substep, full=(1,))
 

@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import collide
-from raidjax.lanes import any_, argmin, cumsum, first_true, materialize, one_hot, pick, total
+from raidjax.lanes import any_, argmin, computed, cumsum, first_true, if_any, one_hot, pick, total
 from raidjax.movement import nearest_alive_player, norm, set_boss
 from raidjax.types import (
     HALF_ARENA,
@@ -205,8 +205,7 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
     b = u_n - 1
     # Straight missiles fly along the facing the caster had while casting (the boss faced its
     # old target); the re-picked target matters for homing, instant and area delivery.
-    facing = materialize(jnp.stack([jnp.cos(state.heading), jnp.sin(state.heading)], axis=1))
-    direction = jnp.broadcast_to(facing[:, None], (u_n, s_n, 2) + lanes)
+    facing = computed(lambda: jnp.stack([jnp.cos(state.heading), jnp.sin(state.heading)], axis=1))
     boss_fired = any_(fired[b])
     new_t = jnp.where(boss_fired, nearest_alive_player(state), state.target[b])
     to_t = pick(state.pos, new_t[None]) - state.pos[b]
@@ -228,36 +227,37 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
     free = ~p.live
     req_rank = jnp.where(req, cumsum(req) - 1, -1)
     free_rank = jnp.where(free, cumsum(free) - 1, -2)
-    assign = materialize(req_rank[:, None] == free_rank[None])  # [R, M, ...]: request r -> slot m
+    assign = computed(lambda: req_rank[:, None] == free_rank[None])  # [R, M, ...]: request r -> slot m
     got = any_(assign)
     src = first_true(assign)  # [M, ...] request feeding each slot
-    unit_ids = jnp.arange(u_n).reshape((u_n, 1) + (1,) * len(lanes))
-    slot_ids = jnp.arange(s_n).reshape((1, s_n) + (1,) * len(lanes))
+    owner, slot = src // s_n, src % s_n  # request r is unit r // S's slot r % S
     area_life = TICK if params.config.one_step_area else AREA_LIFETIME
     life = jnp.broadcast_to(jnp.where(region, area_life, MISSILE_LIFETIME), fired.shape)
-    # One packed pick instead of one per field: [R, 10, ...] -> [M, 10, ...].
-    cols = [kind, unit_ids, slot_ids, target, fired_tick]
+    # One packed pick of the per-request fields instead of one per field: [R, 6, ...] -> [M, 6, ...];
+    # the direction is the caster's facing, picked by owner from U rows instead of R.
+    cols = [kind, target, fired_tick]
     cols = jnp.stack([jnp.broadcast_to(c, fired.shape).astype(jnp.float32) for c in cols], axis=2)
-    packed = jnp.concatenate([spawn_pos, direction, cols, life[:, :, None]], axis=2).reshape((r, 10) + lanes)
-    new = materialize(pick(packed, src[:, None]))
+    packed = jnp.concatenate([spawn_pos, cols, life[:, :, None]], axis=2).reshape((r, 6) + lanes)
+    new = computed(lambda: pick(packed, src[:, None]))
+    direction = computed(lambda: pick(facing, owner[:, None]))  # [M, 2, ...]
     g = got[:, None]
     as_int = lambda x: jnp.round(x).astype(jnp.int32)  # noqa: E731
     proj = Projectiles(
         live=p.live | got,
-        kind=jnp.where(got, as_int(new[:, 4]), p.kind),
+        kind=jnp.where(got, as_int(new[:, 2]), p.kind),
         pos=jnp.where(g, new[:, 0:2], p.pos),
-        direction=jnp.where(g, new[:, 2:4], p.direction),
-        owner=jnp.where(got, as_int(new[:, 5]), p.owner),
-        slot=jnp.where(got, as_int(new[:, 6]), p.slot),
-        target=jnp.where(got, as_int(new[:, 7]), p.target),
-        life=jnp.where(got, new[:, 9], p.life),
+        direction=jnp.where(g, direction, p.direction),
+        owner=jnp.where(got, owner, p.owner),
+        slot=jnp.where(got, slot, p.slot),
+        target=jnp.where(got, as_int(new[:, 3]), p.target),
+        life=jnp.where(got, new[:, 5], p.life),
         hit_mask=p.hit_mask & ~g,
     )
     dropped = total(req) - total(got)
     inst = (fired & instant).reshape((r,) + lanes)
     inst_target = target.reshape((r,) + lanes)
     instant_hits = (inst & pick(state.alive, inst_target), inst_target)
-    flight = jnp.where(got, n_ticks - new[:, 8], n_ticks) * TICK
+    flight = jnp.where(got, n_ticks - new[:, 4], n_ticks) * TICK
     state = state.replace(projectiles=proj, dropped=state.dropped + dropped)
     return state, instant_hits, caster.reshape((r, 2) + lanes), flight
 
@@ -305,21 +305,29 @@ def source_index(owner: jnp.ndarray, slot: jnp.ndarray, n_slots: int) -> jnp.nda
     return owner * (n_slots + 1) + slot
 
 
-def event_sources(table: jnp.ndarray, proj: Projectiles, n_slots: int):
+def split_table(table: jnp.ndarray, n_slots: int) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """``effect_table`` rows (with lanes, ``float32[U * (S + 1), 13, ...]``) as the skill slots' rows
+    ``float32[U * S, 13, ...]`` (row ``u * S + s``) and the basic attacks' ``float32[U, 13, ...]``."""
+    rows = table.reshape((-1, n_slots + 1) + table.shape[1:])  # [U, S + 1, 13, ...]
+    return rows[:, :n_slots].reshape((-1,) + table.shape[1:]), rows[:, n_slots]
+
+
+def event_sources(sources: tuple[jnp.ndarray, jnp.ndarray], proj: Projectiles):
     """Source features ``float32[n, 13, ...]`` and owners ``int32[n, ...]`` of the three groups of a
     sub-step's hit events: the pool's ``M`` slots, every unit's ``S`` skill slots (instant skills),
-    every unit's basic attack. ``table``: ``effect_table`` rows with lanes, ``float32[U * (S + 1), 13, ...]``.
+    every unit's basic attack. ``sources``: ``split_table``'s ``(skills, basic)``.
 
     Returns ``((pool_feats, pool_owner), (skill_feats, skill_owner), (basic_feats, basic_owner))``.
     """
+    skills, basic = sources
     lanes = proj.owner.shape[1:]
-    rows = table.reshape((-1, n_slots + 1) + table.shape[1:])  # [U, S + 1, 13, ...]
-    u_n = rows.shape[0]
+    u_n = basic.shape[0]
+    n_slots = skills.shape[0] // u_n
     # Materialised: every column is read by several consumers, which would each redo the pick.
-    pool = materialize(pick(table, source_index(proj.owner, proj.slot, n_slots)[:, None]))
+    # Pool slots hold skills only, so the pick reads the skill rows.
+    pool = computed(lambda: pick(skills, (proj.owner * n_slots + proj.slot)[:, None]))
     units = jnp.arange(u_n, dtype=jnp.int32).reshape((u_n,) + (1,) * len(lanes))
-    skills = rows[:, :n_slots].reshape((u_n * n_slots,) + table.shape[1:])
-    return ((pool, proj.owner), (skills, jnp.repeat(units, n_slots, axis=0)), (rows[:, n_slots], units))
+    return ((pool, proj.owner), (skills, jnp.repeat(units, n_slots, axis=0)), (basic, units))
 
 
 def touchable(feats: jnp.ndarray, params: Params, alive: jnp.ndarray) -> jnp.ndarray:
@@ -341,17 +349,15 @@ def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: j
     u_n = state.pos.shape[0]
     step = feats[:, F_SPEED] * flight
     flying = p.live & (flight > 0)
-    touch = materialize(touchable(feats, params, state.alive))  # [M, U, ...]
+    touch = computed(lambda: touchable(feats, params, state.alive))  # [M, U, ...]
     # Reference geometry (collide.py): bodies are squares of half side ``radius`` turning with
     # their heading; a projectile touches one within its own radius of the square.
     r_proj = feats[:, F_RADIUS]
     half = params.stats.radius
     px, py = p.pos[:, 0], p.pos[:, 1]
     ux, uy = state.pos[:, 0], state.pos[:, 1]
-    relx, rely = ux[None] - px[:, None], uy[None] - py[:, None]  # [M, U, ...]
-    dist = jnp.sqrt(relx * relx + rely * rely)
     t_oh = one_hot(p.target, u_n, axis=1)
-    cos_h, sin_h = materialize((jnp.cos(state.heading), jnp.sin(state.heading)))  # [U, ...], read per pair
+    cos_h, sin_h = computed(lambda: (jnp.cos(state.heading), jnp.sin(state.heading)))  # [U, ...], read per pair
 
     # Homing: straight at the target's current position; hits only its target, once within reach
     # at the end of its move (it flies at the body's centre, so it cannot pass through it).
@@ -369,12 +375,17 @@ def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: j
     hits_h = hit_h[:, None] & t_oh
 
     # Straight: first touched unit along the segment; walls destroy it.
-    q0x, q0y = collide.to_body_frame(-relx, -rely, cos_h[None], sin_h[None])
     dx, dy = p.direction[:, 0], p.direction[:, 1]
-    d0x, d0y = collide.to_body_frame(dx[:, None], dy[:, None], cos_h[None], sin_h[None])
-    t_in = collide.ray_entry(q0x, q0y, d0x, d0y, half[None], r_proj[:, None])
-    # Materialise the geometry once: XLA would otherwise recompute it inside every consumer.
-    t_in, dist, q0x, q0y = materialize((t_in, dist, q0x, q0y))
+
+    def geometry():  # [M, U, ...] each
+        relx, rely = ux[None] - px[:, None], uy[None] - py[:, None]
+        dist = jnp.sqrt(relx * relx + rely * rely)
+        q0x, q0y = collide.to_body_frame(-relx, -rely, cos_h[None], sin_h[None])
+        d0x, d0y = collide.to_body_frame(dx[:, None], dy[:, None], cos_h[None], sin_h[None])
+        return collide.ray_entry(q0x, q0y, d0x, d0y, half[None], r_proj[:, None]), dist, q0x, q0y
+
+    # Computed once into memory: XLA would otherwise recompute the geometry inside every consumer.
+    t_in, dist, q0x, q0y = computed(geometry)
     cross = touch & (t_in <= step[:, None])
     straight = flying & (p.kind == PROJ_STRAIGHT)
     first = argmin(jnp.where(cross, t_in, jnp.inf), axis=1)
@@ -402,9 +413,10 @@ def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: j
         area_first = argmin(jnp.where(inside, dist, jnp.inf), axis=1)
         hit_a = area & any_(inside, axis=1)
         hits_a = hit_a[:, None] & one_hot(area_first, u_n, axis=1)
-        hits = materialize((hit_h | hit_s | hit_a, jnp.where(homing, p.target, jnp.where(straight, first, area_first))))
+        unit = lambda: jnp.where(homing, p.target, jnp.where(straight, first, area_first))  # noqa: E731
+        hits = computed(lambda: (hit_h | hit_s | hit_a, unit()))
     else:
-        hits = materialize(hits_h | hits_s | hits_a)
+        hits = computed(lambda: hits_h | hits_s | hits_a)
     new_x = jnp.where(homing, hx, jnp.where(straight, sx, px))
     new_y = jnp.where(homing, hy, jnp.where(straight, sy, py))
     life = p.life - flight
@@ -435,15 +447,15 @@ def resolve_hits(seeds, state: State, params: Params, groups):
     u_n = state.hp.shape[0]
     lanes = state.hp.shape[1:]
     e_n = sum(g[0].shape[0] for g in groups)
-    # Per-unit columns ``[U, ...]`` a hit reads from the unit it touches.
-    unit_cols = {
+    # Per-unit columns ``[U, ...]`` a hit reads from the unit it touches; computed once (tiny, and
+    # read by every event: cos and sin are dear).
+    unit_cols = computed(lambda: {
         "x": state.pos[:, 0], "y": state.pos[:, 1],
         "back_x": -jnp.cos(state.heading), "back_y": -jnp.sin(state.heading),
         "evasion": st.evasion, "agility": st.agility, "parry": st.parry,
         "armor": (1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0),
         "team": params.team.astype(jnp.float32),
-    }
-    unit_cols = materialize(unit_cols)  # tiny, and read by every event (cos and sin are dear)
+    })
     damage_in, heal_in = 0.0, 0.0
     dealt, dealt_to_boss, back_count = 0.0, 0.0, 0.0
     offset = 0
@@ -451,19 +463,47 @@ def resolve_hits(seeds, state: State, params: Params, groups):
         n = f.shape[0]
         base = (np.arange(3)[:, None] * e_n + offset + np.arange(n)[None]) * u_n  # [3, n]
         offset += n
-        single = isinstance(hits, tuple)
-        if single:  # one unit per event: [n, ...]
-            hit, unit = hits
-            col = {k: pick(v, unit) for k, v in unit_cols.items()}
-            from_x, from_y = from_pos[:, 0], from_pos[:, 1]
-            index = jnp.asarray(base.reshape(base.shape + (1,) * len(lanes)), jnp.uint32) + unit.astype(jnp.uint32)
-            fc = lambda c, f=f: f[:, c]  # noqa: E731
-        else:  # every unit: [n, U, ...]
-            hit = hits
-            col = {k: v[None] for k, v in unit_cols.items()}
-            from_x, from_y = from_pos[:, 0, None], from_pos[:, 1, None]
-            index = (base[:, :, None] + np.arange(u_n)).astype(np.uint32)
-            fc = lambda c, f=f: f[:, c, None]  # noqa: E731
+        hit = hits[0] if isinstance(hits, tuple) else hits
+        # A group no arena of the batch hits with adds nothing: skip it (the reference content has
+        # no instant skills and no basic attacks). Every sum below is of whole points, so adding
+        # the skipped group's zeros or not gives the same bits.
+        sums = if_any(hit, lambda f=f, owner=owner, hits=hits, from_pos=from_pos, base=base:
+                      _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n, lanes))
+        damage_in, heal_in = damage_in + sums[0], heal_in + sums[1]
+        dealt, dealt_to_boss, back_count = dealt + sums[2], dealt_to_boss + sums[3], back_count + sums[4]
+
+    hp = state.hp - damage_in
+    alive = state.alive & (hp > 0)
+    hp = jnp.where(alive, jnp.minimum(hp + heal_in, st.max_hp), 0.0)  # HP floors at 0
+    back_count = back_count.astype(jnp.int32)
+    died = state.alive & ~alive
+    state = state.replace(
+        hp=hp, alive=alive,
+        casting=state.casting & alive[:, None],
+        vel=jnp.where(died[:, None], 0.0, state.vel),
+        damage_dealt=state.damage_dealt + dealt,
+        back_attacks=state.back_attacks + back_count,
+    )
+    return state, dealt_to_boss, back_count
+
+
+def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lanes: tuple):
+    """One group of ``resolve_hits``: ``(damage_in, heal_in, dealt, dealt_to_boss, back_count)``, each
+    ``float32[U, ...]`` (by the unit hit for the first two, by owner for the rest)."""
+    single = isinstance(hits, tuple)
+    if single:  # one unit per event: [n, ...]
+        hit, unit = hits
+        from_x, from_y = from_pos[:, 0], from_pos[:, 1]
+        index = jnp.asarray(base.reshape(base.shape + (1,) * len(lanes)), jnp.uint32) + unit.astype(jnp.uint32)
+        fc = lambda c, f=f: f[:, c]  # noqa: E731
+    else:  # every unit: [n, U, ...]
+        hit = hits
+        from_x, from_y = from_pos[:, 0, None], from_pos[:, 1, None]
+        index = (base[:, :, None] + np.arange(u_n)).astype(np.uint32)
+        fc = lambda c, f=f: f[:, c, None]  # noqa: E731
+
+    def chain():  # what lands where: [n, ...] or [n, U, ...] each
+        col = {k: pick(v, unit) if single else v[None] for k, v in unit_cols.items()}
         dice = hash_dice(seeds, index)
         crit = dice[0] < fc(F_CRIT)
         relx, rely = from_x - col["x"], from_y - col["y"]
@@ -483,39 +523,24 @@ def resolve_hits(seeds, state: State, params: Params, groups):
         # Homing and instant hits land on their target whatever the flags: gate them here.
         harm = hit & enemy & (fc(F_ENEMY) > 0) & ~dodge
         healed = hit & ~enemy & (fc(F_ALLY) > 0)
-        # Materialise once: otherwise XLA:CPU recomputes the whole chain inside every sum below.
-        harm, healed, back, mult = materialize((harm, healed, back, mult))
-        damage = jnp.where(harm, jnp.floor(fc(F_BASE) * mult + 1e-3), 0.0)
-        heal = jnp.where(healed, fc(F_HEAL), 0.0)
-        back_landed = harm & back & (fc(F_TEAM) == 0)
-        if single:  # spread each event's one target over the unit axis
-            on = one_hot(unit, u_n, axis=1)
-            damage_u, heal_u = jnp.where(on, damage[:, None], 0.0), jnp.where(on, heal[:, None], 0.0)
-            per_event, to_boss, backs = damage, damage_u[:, -1], back_landed
-        else:
-            damage_u, heal_u = damage, heal
-            per_event, to_boss, backs = total(damage, axis=1), damage[:, -1], total(back_landed, axis=1)
-        by_owner = one_hot(owner, u_n, axis=1).astype(jnp.float32)  # [n, U, ...]
-        # Damage is whole points, so every sum here is exact in any order.
-        damage_in = damage_in + total(damage_u)
-        heal_in = heal_in + total(heal_u)
-        dealt = dealt + total(by_owner * per_event[:, None])
-        dealt_to_boss = dealt_to_boss + total(by_owner * to_boss[:, None])
-        back_count = back_count + total(by_owner * backs.astype(jnp.float32)[:, None])
+        return harm, healed, back, mult
 
-    hp = state.hp - damage_in
-    alive = state.alive & (hp > 0)
-    hp = jnp.where(alive, jnp.minimum(hp + heal_in, st.max_hp), 0.0)  # HP floors at 0
-    back_count = back_count.astype(jnp.int32)
-    died = state.alive & ~alive
-    state = state.replace(
-        hp=hp, alive=alive,
-        casting=state.casting & alive[:, None],
-        vel=jnp.where(died[:, None], 0.0, state.vel),
-        damage_dealt=state.damage_dealt + dealt,
-        back_attacks=state.back_attacks + back_count,
-    )
-    return state, dealt_to_boss, back_count
+    # Computed once into memory: otherwise XLA:CPU recomputes the whole chain inside every sum below.
+    harm, healed, back, mult = computed(chain)
+    damage = jnp.where(harm, jnp.floor(fc(F_BASE) * mult + 1e-3), 0.0)
+    heal = jnp.where(healed, fc(F_HEAL), 0.0)
+    back_landed = harm & back & (fc(F_TEAM) == 0)
+    if single:  # spread each event's one target over the unit axis
+        on = one_hot(unit, u_n, axis=1)
+        damage_u, heal_u = jnp.where(on, damage[:, None], 0.0), jnp.where(on, heal[:, None], 0.0)
+        per_event, to_boss, backs = damage, damage_u[:, -1], back_landed
+    else:
+        damage_u, heal_u = damage, heal
+        per_event, to_boss, backs = total(damage, axis=1), damage[:, -1], total(back_landed, axis=1)
+    by_owner = one_hot(owner, u_n, axis=1).astype(jnp.float32)  # [n, U, ...]
+    # Damage is whole points, so every sum here is exact in any order.
+    return (total(damage_u), total(heal_u), total(by_owner * per_event[:, None]),
+            total(by_owner * to_boss[:, None]), total(by_owner * backs.astype(jnp.float32)[:, None]))
 
 
 def basic_attacks(state: State, params: Params, dt: float):

@@ -143,14 +143,14 @@ def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Par
     return state.replace(pos=movement.set_boss(state.pos, pos_b))
 
 
-def substep(seeds, state: State, actions, params: Params, table, n_ticks: int):
+def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int):
     """Advance by ``n_ticks`` 0.02 s ticks; a lane function (``raidjax.lanes``: one arena's shapes, then
     any lane axes ``...``).
 
     Args:
         seeds: ``uint32[2, ...]`` dice seeds of this sub-step (``utils.dice_seeds``).
         state: ``State`` lane arrays; actions: ``int32[P, ...]`` (checked); params: ``Params`` lane arrays.
-        table: ``float32[U * (S + 1), 13, ...]``, ``combat.effect_table`` rows.
+        sources: ``combat.split_table``'s ``(float32[U * S, 13, ...], float32[U, 13, ...])``.
         n_ticks: ticks in the sub-step (static).
 
     Returns:
@@ -178,7 +178,7 @@ def substep(seeds, state: State, actions, params: Params, table, n_ticks: int):
         state, inst_hits, inst_from, flight = lanes.materialize(combat.fire(state, params, fired_tick, n_ticks),
                                                                 since=state)
         after_fire = state
-    pool, skills, basic = combat.event_sources(table, state.projectiles, fired_tick.shape[1])
+    pool, skills, basic = combat.event_sources(sources, state.projectiles)
     with jax.named_scope("projectiles"):
         state, proj_hits, proj_from = combat.move_projectiles(state, params, pool[0], flight)
     with jax.named_scope("hits"):
@@ -198,6 +198,7 @@ def _advance(seeds, state: State, actions, params: Params, table):
     """Play the decision's sub-steps (one per row of ``seeds: uint32[n_sub, 2, ...]``) on lane arrays;
     a finished arena stays as it ended. Returns ``(state, to_boss: float32[U, ...], back: int32[U, ...])``."""
     n_ticks = TICKS_PER_DECISION // seeds.shape[0]
+    sources = combat.split_table(table, state.casting.shape[1])  # once per decision, not per sub-step
 
     def one_substep(carry, xs):
         sub_seeds, i = xs
@@ -206,7 +207,7 @@ def _advance(seeds, state: State, actions, params: Params, table):
         # loop is unrolled) the first lane's seed compared with itself plus one.
         first = sub_seeds.reshape(-1)[0]
         with lanes.gate(i >= 0 if seeds.shape[0] > 1 else first != first + 1):
-            nxt, tb, bk = substep(sub_seeds, cur, actions, params, table, n_ticks)
+            nxt, tb, bk = substep(sub_seeds, cur, actions, params, sources, n_ticks)
         running = cur.result == RUNNING
         return (_select(running, nxt, cur), to_boss + jnp.where(running, tb, 0.0),
                 back + jnp.where(running, bk, 0)), None

@@ -14,6 +14,11 @@ axis last instead of first, so ``jax.vmap(raidjax.step)`` runs the lane program 
 Helpers (shapes: ``x[N, *R, *L]`` with ``L`` the lanes; indices are lane arrays): ``pick`` (gather
 along the leading axis), ``one_hot``, ``argmin``, ``first_true`` and reductions over leading axes as
 folds of elementwise operations (``total``, ``any_``, ``fold``, ``cumsum``).
+
+On XLA:CPU two more shape the compiled sub-step: ``computed`` (and ``materialize``) write a value
+into memory once instead of letting XLA recompute it inside every consumer, and ``if_any`` skips
+work that no arena of the batch needs this sub-step (hit groups nobody lands, the scripted moves of a
+learner's batch).
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ import contextlib
 import functools
 
 import jax
+import jax.extend.core as jex_core
 import jax.numpy as jnp
 from jax.custom_batching import custom_vmap
 
@@ -175,3 +181,60 @@ def materialize(tree, since=None):
     for i, x in zip(new, done, strict=True):
         leaves[i] = x
     return jax.tree.unflatten(treedef, leaves)
+
+
+def if_any(pred: jax.Array, fn):
+    """``fn()`` (a pytree of arrays), or zeros of its shapes without running it when ``pred`` (a
+    ``bool`` lane array) is false everywhere, in every lane: work that no arena of the batch needs.
+
+    Use it only where ``fn`` gives exact zeros (or values nothing selects) whenever ``pred`` is all
+    false; then the result is the same to the bit whether ``fn`` ran or not. On XLA:CPU's lane program
+    the lanes are the arenas, so one test covers the whole batch and the conditional skips the
+    work. Under an outer ``vmap`` that batches ``pred`` both branches run and each arena's own
+    test picks; off the CPU backend ``fn`` always runs.
+    """
+    if jax.default_backend() != "cpu":
+        return fn()
+    closed, shapes = jax.make_jaxpr(fn, return_shape=True)()  # traced once, run in the branch
+    leaves, treedef = jax.tree.flatten(shapes)
+    run = jex_core.jaxpr_as_fun(closed)
+    out = jax.lax.cond(jnp.any(pred), lambda: run(), lambda: [jnp.zeros(x.shape, x.dtype) for x in leaves])
+    return jax.tree.unflatten(treedef, out)
+
+
+def computed(fn):
+    """``fn()`` (a function of no arguments that closes over lane arrays and returns a pytree), computed
+    once into memory before its consumers run, written there by the operations that compute it.
+
+    ``materialize`` moves a value into memory through a conditional whose branch returns it, which
+    XLA:CPU implements as a copy of every leaf. Here ``fn``'s operations run inside the branch, so
+    their results are the conditional's outputs and nothing is copied. Outputs that are values
+    ``fn`` closed over (the leaves a phase did not change) pass by the conditional. Outside ``gate``
+    and off the CPU backend this is ``fn()``.
+    """
+    if _GATE[-1] is None or jax.default_backend() != "cpu":
+        return fn()
+    closed, shapes = jax.make_jaxpr(fn, return_shape=True)()
+    jaxpr = closed.jaxpr
+    const_at = {v: i for i, v in enumerate(jaxpr.constvars)}
+    out_shapes, treedef = jax.tree.flatten(shapes)
+    outs: list = [None] * len(out_shapes)
+    todo = []
+    for j, v in enumerate(jaxpr.outvars):
+        if isinstance(v, jex_core.Literal):
+            outs[j] = jnp.asarray(v.val, out_shapes[j].dtype)
+        elif v in const_at:
+            outs[j] = closed.consts[const_at[v]]
+        else:
+            todo.append(j)
+    run = jex_core.jaxpr_as_fun(closed)
+
+    def branch():
+        res = run()
+        return [res[j] for j in todo]
+
+    # The other branch must differ, or XLA merges the two and drops the conditional.
+    done = jax.lax.cond(_GATE[-1], branch, lambda: [jnp.zeros(out_shapes[j].shape, out_shapes[j].dtype) for j in todo])
+    for j, x in zip(todo, done, strict=True):
+        outs[j] = x
+    return jax.tree.unflatten(treedef, outs)

@@ -12,7 +12,7 @@ import math
 import jax.numpy as jnp
 
 from raidjax import heuristic
-from raidjax.lanes import any_, argmin, pick
+from raidjax.lanes import any_, argmin, if_any, pick
 from raidjax.types import (
     ACTION_HEURISTIC,
     BACKWARD,
@@ -71,26 +71,29 @@ def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) 
     speed = params.stats.move_speed[:n_players]
     alive = state.alive[:n_players]
 
-    # Learner actions: rotation first (a decision either rotates or translates, never both).
-    turn = jnp.where(actions == ROTATE_LEFT, 1.0, jnp.where(actions == ROTATE_RIGHT, -1.0, 0.0))
-    new_heading = heading + turn * TURN_RATE * dt
-    fwd = heading_vec(new_heading)
-    left = jnp.stack([-fwd[:, 1], fwd[:, 0]], axis=1)
-    thrust = (
-        (actions == FORWARD)[:, None] * fwd
-        - (actions == BACKWARD)[:, None] * fwd
-        + STRAFE_FACTOR * (actions == STRAFE_LEFT)[:, None] * left
-        - STRAFE_FACTOR * (actions == STRAFE_RIGHT)[:, None] * left
-    ) * speed[:, None]
-    learner_pos = pos + c0 * vel + ca * thrust
-    learner_vel = dn * vel + s * thrust
-
-    h_pos, h_heading = heuristic.scripted_moves(state, params, n_players, dt)
-
     scripted = actions == ACTION_HEURISTIC
+
+    def learner_moves():  # the velocity-impulse model; rotation first (a decision rotates or translates)
+        turn = jnp.where(actions == ROTATE_LEFT, 1.0, jnp.where(actions == ROTATE_RIGHT, -1.0, 0.0))
+        new_heading = heading + turn * TURN_RATE * dt
+        fwd = heading_vec(new_heading)
+        left = jnp.stack([-fwd[:, 1], fwd[:, 0]], axis=1)
+        thrust = (
+            (actions == FORWARD)[:, None] * fwd
+            - (actions == BACKWARD)[:, None] * fwd
+            + STRAFE_FACTOR * (actions == STRAFE_LEFT)[:, None] * left
+            - STRAFE_FACTOR * (actions == STRAFE_RIGHT)[:, None] * left
+        ) * speed[:, None]
+        return pos + c0 * vel + ca * thrust, dn * vel + s * thrust, new_heading
+
+    # A batch that no learner (or no PT-HR script) moves in skips the other's work (lanes.if_any):
+    # the values are then never selected, so the state is the same to the bit.
+    learner_pos, learner_vel, learner_heading = if_any(~scripted, learner_moves)
+    h_pos, h_heading = if_any(scripted, lambda: heuristic.scripted_moves(state, params, n_players, dt))
+
     new_pos = jnp.where(scripted[:, None], h_pos, learner_pos)
     new_vel = jnp.where(scripted[:, None], 0.0, learner_vel)
-    new_heading = jnp.where(scripted, h_heading, new_heading)
+    new_heading = jnp.where(scripted, h_heading, learner_heading)
     keep = ~alive
     new_pos = jnp.where(keep[:, None], pos, new_pos)
     new_vel = jnp.where(keep[:, None], 0.0, new_vel)

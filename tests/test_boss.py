@@ -216,7 +216,7 @@ def test_area_hits_at_most_hit_count_units_nearest_first(hit_count, expected):
 
 @jax.jit
 def _move(state, params):
-    (feats, _), _, _ = combat.event_sources(combat.effect_table(params), state.projectiles, 3)
+    (feats, _), _, _ = combat.event_sources(combat.split_table(combat.effect_table(params), 3), state.projectiles)
     return combat.move_projectiles(state, params, feats, 0.1)
 
 

@@ -80,15 +80,63 @@ def test_materialize_passes_the_leaves_of_since_by_the_conditional():
     assert ("conditional" in gated.lower(jnp.arange(3.0), jnp.int32(1)).as_text("hlo")) == on_cpu
 
 
+
+def test_computed_returns_fn_and_passes_closed_over_leaves_by():
+    """Values computed inside the conditional come back unchanged; a leaf ``fn`` only closed over is
+    the very same array (no conditional output, no copy)."""
+    seen = {}
+
+    @jax.jit
+    def gated(x, flag):
+        with lanes.gate(flag > 0):
+            out = lanes.computed(lambda: {"x": x, "y": x * 2.0, "n": jnp.sum(x > 0)})
+        seen["kept"] = out["x"] is x
+        return out
+
+    out = gated(jnp.arange(3.0), jnp.int32(1))
+    assert seen["kept"]
+    np.testing.assert_array_equal(out["y"], [0.0, 2.0, 4.0])
+    assert int(out["n"]) == 2
+    on_cpu = jax.default_backend() == "cpu"  # elsewhere computed is fn()
+    assert ("conditional" in gated.lower(jnp.arange(3.0), jnp.int32(1)).as_text("hlo")) == on_cpu
+    # Outside a gate it is a plain call.
+    np.testing.assert_array_equal(lanes.computed(lambda: jnp.arange(2.0) + 1.0), [1.0, 2.0])
+
+
+def test_if_any_runs_fn_only_when_some_lane_needs_it():
+    """``fn`` here gives non-zero values even where ``pred`` is false, so zeros show it was skipped."""
+    f = jax.jit(lambda pred, x: lanes.if_any(pred, lambda: (x + 1.0, x > 0)))
+    x = jnp.array([1.0, 2.0])
+    out = f(jnp.array([False, True]), x)
+    np.testing.assert_array_equal(out[0], [2.0, 3.0])
+    np.testing.assert_array_equal(out[1], [True, True])
+    skipped = f(jnp.array([False, False]), x)
+    if jax.default_backend() == "cpu":
+        np.testing.assert_array_equal(skipped[0], [0.0, 0.0])
+        np.testing.assert_array_equal(skipped[1], [False, False])
+    # Under a vmap that batches pred, each arena's own test picks between fn's values and zeros.
+    per_arena = jax.vmap(lambda p, v: lanes.if_any(p, lambda: v + 1.0))(jnp.array([False, True]), x)
+    np.testing.assert_array_equal(per_arena, [0.0, 3.0] if jax.default_backend() == "cpu" else [2.0, 3.0])
+
+
 def _fights():
-    """Three arenas in mid-fight (live projectiles, casts), different content and actions."""
-    contents = [raidjax.make_params(skill_range=r, **extra)
-                for r, extra in ((5.0, {}), (13.0, {"armor": 30}), (9.0, {"skill1.cool_time": 1.0}))]
-    states = []
-    for c in contents:
+    """Four arenas in mid-fight (live projectiles, casts), different content and actions (PT-HR in
+    the first, learners in the others). In the tested decision the second arena's players land
+    instant skills and the fourth's basic attacks: hit groups a batch of the other arenas alone
+    would skip (``lanes.if_any``)."""
+    fights = (  # skill range, content overrides, decisions played before the tested one
+        (5.0, {}, 6),
+        (13.0, {"armor": 30, "skill1.projectile_speed": 0.0}, 14),
+        (9.0, {"skill1.cool_time": 1.0}, 6),
+        (13.0, {"attack_power": 40, "attack_range": 10, "spell_power": 0}, 10),
+    )
+    contents, states = [], []
+    for r, extra, n in fights:
+        c = raidjax.make_params(skill_range=r, **extra)
         s = scenario(c, players=((-3, -4), (0, -4.5), (3, -4)), boss=(0.0, 0.0))
-        states.append(run(s, c, acts(ACTION_HEURISTIC), 6)[0])
-    actions = jnp.stack([acts(ACTION_HEURISTIC), acts(CAST_1, NOOP, FORWARD), acts(NOOP)])
+        contents.append(c)
+        states.append(run(s, c, acts(ACTION_HEURISTIC), n)[0])
+    actions = jnp.stack([acts(ACTION_HEURISTIC), acts(CAST_1, NOOP, FORWARD), acts(NOOP), acts(FORWARD)])
     return contents, states, actions
 
 
@@ -103,10 +151,14 @@ def assert_equal(a, b):
 
 def test_vmapped_step_equals_single_steps_bit_for_bit():
     contents, states, actions = _fights()
-    keys = jax.random.split(jax.random.key(4), 3)
-    single = [jax.jit(raidjax.step)(keys[i], states[i], actions[i], contents[i]) for i in range(3)]
+    keys = jax.random.split(jax.random.key(4), 4)
+    single = [jax.jit(raidjax.step)(keys[i], states[i], actions[i], contents[i]) for i in range(4)]
+    # The step exercises what it should: the players' only damage is their instant missiles in the
+    # second arena and their basic attacks in the fourth (their missiles do none: spell power 0).
+    assert float(single[1][4]["damage_dealt"].sum()) > 0
+    assert float(single[3][4]["damage_dealt"].sum()) > 0
     out = jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked(contents))
-    for i in range(3):
+    for i in range(4):
         mine = jax.tree.map(lambda x, i=i: x[i], out)
         assert_equal(mine[1:], single[i][1:])  # state, reward, done, info: bit for bit
         # The observation is built per decision by an ordinary vmap, which XLA may round apart
@@ -115,16 +167,16 @@ def test_vmapped_step_equals_single_steps_bit_for_bit():
             np.testing.assert_allclose(np.asarray(x, np.float32), np.asarray(y, np.float32), rtol=0, atol=1e-6)
     # One content shared by every arena (params unbatched: it broadcasts along the lanes).
     shared = jax.jit(jax.vmap(raidjax.step, (0, 0, 0, None)))(keys, stacked(states), actions, contents[0])
-    per_arena = jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked([contents[0]] * 3))
+    per_arena = jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked([contents[0]] * 4))
     assert_equal(shared[1:], per_arena[1:])
 
 
 def test_nested_vmap_equals_the_flat_one():
     contents, states, actions = _fights()
-    keys = jax.random.split(jax.random.key(5), 6)
+    keys = jax.random.split(jax.random.key(5), 8)
     two = lambda t: jax.tree.map(lambda x: jnp.concatenate([x, x[::-1]]), t)  # noqa: E731
     flat = jax.jit(jax.vmap(raidjax.step))(keys, two(stacked(states)), two(actions), two(stacked(contents)))
-    nest = lambda t: jax.tree.map(lambda x: x.reshape((2, 3) + x.shape[1:]), t)  # noqa: E731
+    nest = lambda t: jax.tree.map(lambda x: x.reshape((2, 4) + x.shape[1:]), t)  # noqa: E731
     nested = jax.jit(jax.vmap(jax.vmap(raidjax.step)))(nest(keys), nest(two(stacked(states))), nest(two(actions)),
                                                       nest(two(stacked(contents))))
-    assert_equal(jax.tree.map(lambda x: x.reshape((6,) + x.shape[2:]), nested)[1:], flat[1:])
+    assert_equal(jax.tree.map(lambda x: x.reshape((8,) + x.shape[2:]), nested)[1:], flat[1:])

@@ -1,4 +1,5 @@
-"""Casting, cooldowns/charges/mana, the projectile pool and damage (GAME.md §5–§6).
+"""Casting, cooldowns/charges/mana, spawning into the projectile pool, and damage (GAME.md §5–§6);
+the pool's flight and collision are ``raidjax.projectiles``'.
 
 Lane functions (``raidjax.lanes``): shapes are one arena's, followed by any number of lane (batch)
 axes. ``U`` units (boss last), ``S`` skill slots, ``M`` projectile slots, ``E = M + U*S + U`` hit
@@ -7,14 +8,13 @@ events per sub-step (projectiles, instant skills, basic attacks).
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from raidjax import collide
 from raidjax.lanes import any_, argmin, computed, cumsum, first_true, if_any, one_hot, pick, total
 from raidjax.movement import nearest_alive_player, norm, set_boss
 from raidjax.types import (
-    HALF_ARENA,
     HIT_ATTACK,
     PROJ_AREA,
     PROJ_HOMING,
@@ -230,7 +230,7 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
     assign = computed(lambda: req_rank[:, None] == free_rank[None])  # [R, M, ...]: request r -> slot m
     got = any_(assign)
     src = first_true(assign)  # [M, ...] request feeding each slot
-    owner, slot = src // s_n, src % s_n  # request r is unit r // S's slot r % S
+    owner, slot = jax.lax.div(src, s_n), jax.lax.rem(src, s_n)  # request r is unit r // S's slot r % S
     area_life = TICK if params.config.one_step_area else AREA_LIFETIME
     life = jnp.broadcast_to(jnp.where(region, area_life, MISSILE_LIFETIME), fired.shape)
     # One packed pick of the per-request fields instead of one per field: [R, 6, ...] -> [M, 6, ...];
@@ -312,22 +312,18 @@ def split_table(table: jnp.ndarray, n_slots: int) -> tuple[jnp.ndarray, jnp.ndar
     return rows[:, :n_slots].reshape((-1,) + table.shape[1:]), rows[:, n_slots]
 
 
-def event_sources(sources: tuple[jnp.ndarray, jnp.ndarray], proj: Projectiles):
-    """Source features ``float32[n, 13, ...]`` and owners ``int32[n, ...]`` of the three groups of a
-    sub-step's hit events: the pool's ``M`` slots, every unit's ``S`` skill slots (instant skills),
-    every unit's basic attack. ``sources``: ``split_table``'s ``(skills, basic)``.
+def event_sources(sources: tuple[jnp.ndarray, jnp.ndarray], n_lanes: int):
+    """Source features ``float32[n, 13, ...]`` and owners ``int32[n, ...]`` of two groups of a
+    sub-step's hit events: every unit's ``S`` skill slots (instant skills) and every unit's basic
+    attack (the pool's are ``raidjax.projectiles``'). ``sources``: ``split_table``'s ``(skills, basic)``;
+    ``n_lanes``: how many lane axes the arrays carry.
 
-    Returns ``((pool_feats, pool_owner), (skill_feats, skill_owner), (basic_feats, basic_owner))``.
+    Returns ``((skill_feats, skill_owner), (basic_feats, basic_owner))``.
     """
     skills, basic = sources
-    lanes = proj.owner.shape[1:]
     u_n = basic.shape[0]
-    n_slots = skills.shape[0] // u_n
-    # Materialised: every column is read by several consumers, which would each redo the pick.
-    # Pool slots hold skills only, so the pick reads the skill rows.
-    pool = computed(lambda: pick(skills, (proj.owner * n_slots + proj.slot)[:, None]))
-    units = jnp.arange(u_n, dtype=jnp.int32).reshape((u_n,) + (1,) * len(lanes))
-    return ((pool, proj.owner), (skills, jnp.repeat(units, n_slots, axis=0)), (basic, units))
+    units = jnp.arange(u_n, dtype=jnp.int32).reshape((u_n,) + (1,) * n_lanes)
+    return (skills, jnp.repeat(units, skills.shape[0] // u_n, axis=0)), (basic, units)
 
 
 def touchable(feats: jnp.ndarray, params: Params, alive: jnp.ndarray) -> jnp.ndarray:
@@ -336,97 +332,21 @@ def touchable(feats: jnp.ndarray, params: Params, alive: jnp.ndarray) -> jnp.nda
     return ((feats[:, F_ENEMY, None] > 0) & ~same | (feats[:, F_ALLY, None] > 0) & same) & alive[None]
 
 
-def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: jnp.ndarray):
-    """Advance the pool one sub-step with swept collision; slot m flies ``flight[m]`` seconds
-    (``fire``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
-    hits before the next). ``feats``: the pool's source features, ``float32[M, 13, ...]``.
-
-    Returns ``(state, hits, from_pos: float32[M, 2, ...])`` where ``from_pos`` is the projectile's
-    position before the move (the direction a hit comes from) and ``hits`` is ``bool[M, U, ...]``, or
-    under ``one_step_area``, when no slot can hit two units, ``(hit: bool[M, ...], unit: int32[M, ...])``.
-    """
-    p = state.projectiles
-    u_n = state.pos.shape[0]
-    step = feats[:, F_SPEED] * flight
-    flying = p.live & (flight > 0)
-    touch = computed(lambda: touchable(feats, params, state.alive))  # [M, U, ...]
-    # Reference geometry (collide.py): bodies are squares of half side ``radius`` turning with
-    # their heading; a projectile touches one within its own radius of the square.
-    r_proj = feats[:, F_RADIUS]
-    half = params.stats.radius
-    px, py = p.pos[:, 0], p.pos[:, 1]
-    ux, uy = state.pos[:, 0], state.pos[:, 1]
-    t_oh = one_hot(p.target, u_n, axis=1)
-    cos_h, sin_h = computed(lambda: (jnp.cos(state.heading), jnp.sin(state.heading)))  # [U, ...], read per pair
-
-    # Homing: straight at the target's current position; hits only its target, once within reach
-    # at the end of its move (it flies at the body's centre, so it cannot pass through it).
-    # Only the target matters, so this is [M] work, not [M, U].
-    tx, ty = pick(ux, p.target), pick(uy, p.target)
-    trelx, trely = tx - px, ty - py
-    tdist = jnp.sqrt(trelx * trelx + trely * trely)
-    t_alive = pick(state.alive, p.target)
-    homing = flying & (p.kind == PROJ_HOMING)
-    inv, reach = jnp.maximum(tdist, EPS), jnp.minimum(step, tdist)
-    hx, hy = px + trelx / inv * reach, py + trely / inv * reach
-    qx, qy = collide.to_body_frame(hx - tx, hy - ty, pick(cos_h, p.target), pick(sin_h, p.target))
-    end_gap = collide.box_distance(qx, qy, pick(half, p.target))
-    hit_h = homing & t_alive & (end_gap <= r_proj)
-    hits_h = hit_h[:, None] & t_oh
-
-    # Straight: first touched unit along the segment; walls destroy it.
-    dx, dy = p.direction[:, 0], p.direction[:, 1]
-
-    def geometry():  # [M, U, ...] each
-        relx, rely = ux[None] - px[:, None], uy[None] - py[:, None]
-        dist = jnp.sqrt(relx * relx + rely * rely)
-        q0x, q0y = collide.to_body_frame(-relx, -rely, cos_h[None], sin_h[None])
-        d0x, d0y = collide.to_body_frame(dx[:, None], dy[:, None], cos_h[None], sin_h[None])
-        return collide.ray_entry(q0x, q0y, d0x, d0y, half[None], r_proj[:, None]), dist, q0x, q0y
-
-    # Computed once into memory: XLA would otherwise recompute the geometry inside every consumer.
-    t_in, dist, q0x, q0y = computed(geometry)
-    cross = touch & (t_in <= step[:, None])
-    straight = flying & (p.kind == PROJ_STRAIGHT)
-    first = argmin(jnp.where(cross, t_in, jnp.inf), axis=1)
-    hit_s = straight & any_(cross, axis=1)
-    hits_s = hit_s[:, None] & one_hot(first, u_n, axis=1)
-    sx, sy = px + dx * step, py + dy * step
-    out = (jnp.abs(sx) > HALF_ARENA) | (jnp.abs(sy) > HALF_ARENA)
-
-    # Area: every touchable unit inside, nearest first, at most hit_count units in all.
-    area = flying & (p.kind == PROJ_AREA)
-    gap = collide.box_distance(q0x, q0y, half[None])
-    inside = area[:, None] & touch & (gap <= r_proj[:, None]) & ~p.hit_mask
-    rank = []
-    for u in range(u_n):  # how many inside units are nearer than u (ties: the lower index first)
-        nearer = [((dist[:, v] < dist[:, u]) | ((dist[:, v] == dist[:, u]) & (v < u))) & inside[:, v]
-                  for v in range(u_n)]
-        rank.append(sum(x.astype(jnp.int32) for x in nearer))
-    rank = jnp.stack(rank, axis=1)
-    # one_step_area: the reference's slash is switched off by its first hit.
-    cap = 1.0 if params.config.one_step_area else feats[:, F_HITS]
-    left = cap - total(p.hit_mask, axis=1)
-    hits_a = inside & (rank < left[:, None])
-    if params.config.one_step_area:
-        # Every kind hits at most one unit (an area its nearest inside): one target per slot.
-        area_first = argmin(jnp.where(inside, dist, jnp.inf), axis=1)
-        hit_a = area & any_(inside, axis=1)
-        hits_a = hit_a[:, None] & one_hot(area_first, u_n, axis=1)
-        unit = lambda: jnp.where(homing, p.target, jnp.where(straight, first, area_first))  # noqa: E731
-        hits = computed(lambda: (hit_h | hit_s | hit_a, unit()))
-    else:
-        hits = computed(lambda: hits_h | hits_s | hits_a)
-    new_x = jnp.where(homing, hx, jnp.where(straight, sx, px))
-    new_y = jnp.where(homing, hy, jnp.where(straight, sy, py))
-    life = p.life - flight
-    gone = (homing & (hit_h | ~t_alive)) | (straight & (hit_s | out)) | (life <= EPS)
-    new = p.replace(live=p.live & ~gone, pos=jnp.stack([new_x, new_y], axis=1), life=life,
-                    hit_mask=p.hit_mask | hits_a)
-    return state.replace(projectiles=new), hits, p.pos
+def unit_columns(state: State, params: Params) -> dict[str, jnp.ndarray]:
+    """Per-unit columns ``float32[U, ...]`` a hit reads from the unit it touches (position, rear
+    direction, evasion, agility, parry, armour factor, team), computed once into memory: tiny, and
+    read by every hit event (cos and sin are dear)."""
+    st = params.stats
+    return computed(lambda: {
+        "x": state.pos[:, 0], "y": state.pos[:, 1],
+        "back_x": -jnp.cos(state.heading), "back_y": -jnp.sin(state.heading),
+        "evasion": st.evasion, "agility": st.agility, "parry": st.parry,
+        "armor": (1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0),
+        "team": params.team.astype(jnp.float32),
+    })
 
 
-def resolve_hits(seeds, state: State, params: Params, groups):
+def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, first=None):
     """Apply damage and heals of a sub-step's hit events to the units.
 
     The ``E`` events come in groups (the pool, instant skills, basic attacks) resolved one by one
@@ -439,6 +359,9 @@ def resolve_hits(seeds, state: State, params: Params, groups):
             it touches and ``float32[n, 2, ...]`` where it comes from (back attacks). ``hits`` is
             ``bool[n, U, ...]``, or ``(hit: bool[n, ...], unit: int32[n, ...])`` for events that touch
             at most one unit (only that unit's dice and damage are computed).
+        unit_cols: ``unit_columns(state, params)`` if already computed.
+        first: ``(n, sums)``: ``n`` events resolved already (the pool's, ``raidjax.projectiles.fly``)
+            as events ``0..n-1``, and their ``group_sums``; ``groups`` follow them.
 
     Returns:
         ``(state, dealt_to_boss: float32[U, ...], back: int32[U, ...])`` by owner.
@@ -446,19 +369,10 @@ def resolve_hits(seeds, state: State, params: Params, groups):
     st = params.stats
     u_n = state.hp.shape[0]
     lanes = state.hp.shape[1:]
-    e_n = sum(g[0].shape[0] for g in groups)
-    # Per-unit columns ``[U, ...]`` a hit reads from the unit it touches; computed once (tiny, and
-    # read by every event: cos and sin are dear).
-    unit_cols = computed(lambda: {
-        "x": state.pos[:, 0], "y": state.pos[:, 1],
-        "back_x": -jnp.cos(state.heading), "back_y": -jnp.sin(state.heading),
-        "evasion": st.evasion, "agility": st.agility, "parry": st.parry,
-        "armor": (1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0),
-        "team": params.team.astype(jnp.float32),
-    })
-    damage_in, heal_in = 0.0, 0.0
-    dealt, dealt_to_boss, back_count = 0.0, 0.0, 0.0
-    offset = 0
+    offset, sums = first if first is not None else (0, (0.0,) * 5)
+    e_n = offset + sum(g[0].shape[0] for g in groups)
+    unit_cols = unit_columns(state, params) if unit_cols is None else unit_cols
+    damage_in, heal_in, dealt, dealt_to_boss, back_count = sums
     for f, owner, hits, from_pos in groups:
         n = f.shape[0]
         base = (np.arange(3)[:, None] * e_n + offset + np.arange(n)[None]) * u_n  # [3, n]
@@ -468,7 +382,7 @@ def resolve_hits(seeds, state: State, params: Params, groups):
         # no instant skills and no basic attacks). Every sum below is of whole points, so adding
         # the skipped group's zeros or not gives the same bits.
         sums = if_any(hit, lambda f=f, owner=owner, hits=hits, from_pos=from_pos, base=base:
-                      _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n, lanes))
+                      group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n, lanes))
         damage_in, heal_in = damage_in + sums[0], heal_in + sums[1]
         dealt, dealt_to_boss, back_count = dealt + sums[2], dealt_to_boss + sums[3], back_count + sums[4]
 
@@ -487,7 +401,7 @@ def resolve_hits(seeds, state: State, params: Params, groups):
     return state, dealt_to_boss, back_count
 
 
-def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lanes: tuple):
+def group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lanes: tuple):
     """One group of ``resolve_hits``: ``(damage_in, heal_in, dealt, dealt_to_boss, back_count)``, each
     ``float32[U, ...]`` (by the unit hit for the first two, by owner for the rest)."""
     single = isinstance(hits, tuple)
@@ -499,7 +413,10 @@ def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lane
     else:  # every unit: [n, U, ...]
         hit = hits
         from_x, from_y = from_pos[:, 0, None], from_pos[:, 1, None]
-        index = (base[:, :, None] + np.arange(u_n)).astype(np.uint32)
+        index = base[:, :, None] + np.arange(u_n)
+        # numpy: the same indices in every lane; traced (the pool's blocks): give it the lane axes.
+        index = (index.astype(np.uint32) if isinstance(index, np.ndarray)
+                 else index.reshape(index.shape + (1,) * len(lanes)).astype(jnp.uint32))
         fc = lambda c, f=f: f[:, c, None]  # noqa: E731
 
     def chain():  # what lands where: [n, ...] or [n, U, ...] each

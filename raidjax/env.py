@@ -15,7 +15,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax import combat, heuristic, lanes, movement
+from raidjax import combat, heuristic, lanes, movement, projectiles
 from raidjax.observation import observe
 from raidjax.reference_observation import remember, start_memory
 from raidjax.types import (
@@ -175,16 +175,20 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int)
         state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
         state, fired_tick = lanes.materialize(combat.advance_casts(state, params, n_ticks), since=before)
     with jax.named_scope("fire"):
-        state, inst_hits, inst_from, flight = lanes.materialize(combat.fire(state, params, fired_tick, n_ticks),
-                                                                since=state)
+        state, inst_hits, inst_from, flight = lanes.computed(
+            lambda state=state: combat.fire(state, params, fired_tick, n_ticks))
         after_fire = state
-    pool, skills, basic = combat.event_sources(sources, state.projectiles)
+    skills, basic = combat.event_sources(sources, state.hp.ndim - 1)
+    unit_cols = combat.unit_columns(state, params)  # the pool moves nobody: they serve every hit
+    m = state.projectiles.live.shape[0]
     with jax.named_scope("projectiles"):
-        state, proj_hits, proj_from = combat.move_projectiles(state, params, pool[0], flight)
+        state, pool_sums = projectiles.fly(seeds, state, params, sources[0], flight, unit_cols,
+                                           m + skills[0].shape[0] + basic[0].shape[0])
     with jax.named_scope("hits"):
         state, basic_hits = combat.basic_attacks(state, params, dt)
-        groups = ((*pool, proj_hits, proj_from), (*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))
-        state, to_boss, back = lanes.materialize(combat.resolve_hits(seeds, state, params, groups), since=after_fire)
+        groups = ((*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))
+        state, to_boss, back = lanes.materialize(
+            combat.resolve_hits(seeds, state, params, groups, unit_cols, first=(m, pool_sums)), since=after_fire)
     state = combat.regenerate(state, params, dt)
     state = state.replace(clock=state.clock + dt)
     players_dead = ~lanes.any_(state.alive[:-1])

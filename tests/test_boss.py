@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from helpers import BOSS, CAST_1, NOOP, RESET, acts, events, make, run, scenario, series
 
-from raidjax import combat
+from raidjax import combat, projectiles
 
 CAST = acts(CAST_1, NOOP, NOOP)
 CHASER = {"move_speed": 6.0}  # passive boss that chases (its attacks out of range)
@@ -216,8 +216,9 @@ def test_area_hits_at_most_hit_count_units_nearest_first(hit_count, expected):
 
 @jax.jit
 def _move(state, params):
-    (feats, _), _, _ = combat.event_sources(combat.split_table(combat.effect_table(params), 3), state.projectiles)
-    return combat.move_projectiles(state, params, feats, 0.1)
+    skills, _ = combat.split_table(combat.effect_table(params), 3)
+    feats = skills[state.projectiles.owner * 3 + state.projectiles.slot]
+    return projectiles.move_projectiles(state, params, feats, 0.1)
 
 
 def test_area_hits_each_unit_only_once_while_it_lingers():

@@ -191,13 +191,13 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
         fired_tick: ``int32[U, S, ...]`` from ``advance_casts`` (tick of the sub-step a cast completed, or 0).
         n_ticks: ticks in this sub-step.
 
-    Returns ``(state, instant_hits, instant_from: float32[U*S, 2, ...], flight: float32[M, ...])``
-    where ``instant_hits = (hit: bool[U*S, ...], unit: int32[U*S, ...])`` (an instant skill hits its
-    target) and ``flight`` is how long each pool slot flies in this sub-step: the whole
-    sub-step, or, for a projectile spawned now, the ticks after the one it was fired in (the
-    reference spawns in the end-of-tick coroutine phase; a projectile first moves and collides in
-    the next tick). The boss re-picks its target (nearest alive player) as its skills fire;
-    straight missiles keep the facing the caster had.
+    Returns ``(state, instant_hits, instant_from: float32[U*S, 2, ...], spawns)`` where ``instant_hits =
+    (hit: bool[U*S, ...], unit: int32[U*S, ...])`` (an instant skill hits its target) and ``spawns``
+    says which request each free pool slot takes (``spawn`` writes them: ``raidjax.projectiles.fly``
+    does, block by block): ``(got: bool[M, ...], src: int32[M, ...], packed: float32[U*S, 6, ...],
+    facing: float32[U, 2, ...])``, the request feeding slot m being ``src[m]`` where ``got[m]``.
+    The boss re-picks its target (nearest alive player) as its skills fire; straight missiles keep
+    the facing the caster had.
     """
     fired = fired_tick > 0
     u_n, s_n = fired.shape[:2]
@@ -230,19 +230,34 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
     assign = computed(lambda: req_rank[:, None] == free_rank[None])  # [R, M, ...]: request r -> slot m
     got = any_(assign)
     src = first_true(assign)  # [M, ...] request feeding each slot
-    owner, slot = jax.lax.div(src, s_n), jax.lax.rem(src, s_n)  # request r is unit r // S's slot r % S
     area_life = TICK if params.config.one_step_area else AREA_LIFETIME
     life = jnp.broadcast_to(jnp.where(region, area_life, MISSILE_LIFETIME), fired.shape)
-    # One packed pick of the per-request fields instead of one per field: [R, 6, ...] -> [M, 6, ...];
-    # the direction is the caster's facing, picked by owner from U rows instead of R.
+    # One packed pick of the per-request fields instead of one per field: [R, 6, ...] -> [M, 6, ...].
     cols = [kind, target, fired_tick]
     cols = jnp.stack([jnp.broadcast_to(c, fired.shape).astype(jnp.float32) for c in cols], axis=2)
     packed = jnp.concatenate([spawn_pos, cols, life[:, :, None]], axis=2).reshape((r, 6) + lanes)
+    dropped = total(req) - total(got)
+    inst = (fired & instant).reshape((r,) + lanes)
+    inst_target = target.reshape((r,) + lanes)
+    instant_hits = (inst & pick(state.alive, inst_target), inst_target)
+    state = state.replace(dropped=state.dropped + dropped)
+    return state, instant_hits, caster.reshape((r, 2) + lanes), (got, src, packed, facing)
+
+
+def spawn(p: Projectiles, spawns, n_ticks: int) -> tuple[Projectiles, jnp.ndarray]:
+    """Write ``fire``'s ``spawns`` into pool slots ``p`` (all ``M`` or a block of them, with ``got`` and
+    ``src`` cut alike). Returns the slots and ``flight: float32[n, ...]``, how long each flies in this
+    sub-step: the whole sub-step, or, for a projectile spawned now, the ticks after the one it was
+    fired in (the reference spawns in the end-of-tick coroutine phase; a projectile first moves and
+    collides in the next tick)."""
+    got, src, packed, facing = spawns
+    s_n = packed.shape[0] // facing.shape[0]
+    owner, slot = jax.lax.div(src, s_n), jax.lax.rem(src, s_n)  # request r is unit r // S's slot r % S
     new = computed(lambda: pick(packed, src[:, None]))
-    direction = computed(lambda: pick(facing, owner[:, None]))  # [M, 2, ...]
+    direction = computed(lambda: pick(facing, owner[:, None]))  # the caster's facing, from U rows
     g = got[:, None]
     as_int = lambda x: jnp.round(x).astype(jnp.int32)  # noqa: E731
-    proj = Projectiles(
+    p = Projectiles(
         live=p.live | got,
         kind=jnp.where(got, as_int(new[:, 2]), p.kind),
         pos=jnp.where(g, new[:, 0:2], p.pos),
@@ -253,13 +268,7 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
         life=jnp.where(got, new[:, 5], p.life),
         hit_mask=p.hit_mask & ~g,
     )
-    dropped = total(req) - total(got)
-    inst = (fired & instant).reshape((r,) + lanes)
-    inst_target = target.reshape((r,) + lanes)
-    instant_hits = (inst & pick(state.alive, inst_target), inst_target)
-    flight = jnp.where(got, n_ticks - new[:, 4], n_ticks) * TICK
-    state = state.replace(projectiles=proj, dropped=state.dropped + dropped)
-    return state, instant_hits, caster.reshape((r, 2) + lanes), flight
+    return p, jnp.where(got, n_ticks - new[:, 4], n_ticks) * TICK
 
 
 # Columns of the per-source effect table (``effect_table``).

@@ -175,14 +175,14 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int)
         state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
         state, fired_tick = lanes.materialize(combat.advance_casts(state, params, n_ticks), since=before)
     with jax.named_scope("fire"):
-        state, inst_hits, inst_from, flight = lanes.computed(
+        state, inst_hits, inst_from, spawns = lanes.computed(
             lambda state=state: combat.fire(state, params, fired_tick, n_ticks))
         after_fire = state
     skills, basic = combat.event_sources(sources, state.hp.ndim - 1)
     unit_cols = combat.unit_columns(state, params)  # the pool moves nobody: they serve every hit
     m = state.projectiles.live.shape[0]
     with jax.named_scope("projectiles"):
-        state, pool_sums = projectiles.fly(seeds, state, params, sources[0], flight, unit_cols,
+        state, pool_sums = projectiles.fly(seeds, state, params, sources[0], spawns, n_ticks, unit_cols,
                                            m + skills[0].shape[0] + basic[0].shape[0])
     with jax.named_scope("hits"):
         state, basic_hits = combat.basic_attacks(state, params, dt)

@@ -3,12 +3,13 @@
 Lane functions (``raidjax.lanes``): shapes are one arena's, followed by any number of lane (batch)
 axes. ``U`` units (boss last), ``S`` skill slots, ``M`` pool slots.
 
-The pool's per-slot work (its source features, the flight and collision of ``move_projectiles``,
-the damage of its hits) runs in blocks of ``POOL_BLOCK`` slots. On XLA:CPU's lane program a block
-in which no arena of the batch has a live projectile is skipped: slots fill lowest first, and the
-reference content keeps at most 8 projectiles alive (4 096 arenas x 600 decisions at ranges 9 / 13 /
-17), so most of a 16-slot pool is empty in every arena. An empty slot's state does not change in
-flight, so a skipped block leaves the same state to the bit as a processed one.
+The pool's per-slot work (writing the sub-step's new projectiles, their source features, the
+flight and collision of ``move_projectiles``, the damage of their hits) runs in blocks of
+``POOL_BLOCK`` slots. On XLA:CPU's lane program a block in which no arena of the batch has a live
+or new projectile is skipped: slots fill lowest first, and the reference content keeps at most 8
+projectiles alive (4 096 arenas x 600 decisions at ranges 9 / 13 / 17), so most of a 16-slot pool
+is empty in every arena. An empty slot's state does not change in flight, so a skipped block
+leaves the same state to the bit as a processed one.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from raidjax import collide
-from raidjax.combat import EPS, F_HITS, F_RADIUS, F_SPEED, group_sums, touchable
+from raidjax.combat import EPS, F_HITS, F_RADIUS, F_SPEED, group_sums, spawn, touchable
 from raidjax.lanes import any_, argmin, computed, if_any, one_hot, pick, total
 from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Params, Projectiles, State
 
@@ -122,14 +123,17 @@ def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: j
     return state.replace(projectiles=new), hits, p.pos
 
 
-def fly(seeds, state: State, params: Params, skills: jnp.ndarray, flight: jnp.ndarray, unit_cols, n_events: int):
-    """Move the pool one sub-step and resolve its hits, block by block (see the module docstring).
+def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_ticks: int, unit_cols,
+        n_events: int):
+    """Spawn this sub-step's projectiles, move the pool and resolve its hits, block by block (see
+    the module docstring).
 
     Args:
         seeds: ``uint32[2, ...]`` the sub-step's dice seeds.
         state: the state after ``combat.fire``.
         skills: ``float32[U * S, 13, ...]`` the effect table's skill rows (``combat.split_table``).
-        flight: ``float32[M, ...]``, ``combat.fire``'s flight time of every slot.
+        spawns: ``combat.fire``'s spawns (``combat.spawn`` writes them).
+        n_ticks: ticks in the sub-step (static).
         unit_cols: ``combat.unit_columns(state, params)``.
         n_events: ``E``, the sub-step's hit events (the pool's are events ``0..M-1``).
 
@@ -143,27 +147,30 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, flight: jnp.nd
     m = p.live.shape[0]
     n_blocks = pool_blocks(m)
     size = m // n_blocks
+    got, src, packed, facing = spawns
 
-    def block(pb: Projectiles, fl: jnp.ndarray, start):
+    def block(pb: Projectiles, got_b, src_b, start):
+        pb, flight = spawn(pb, (got_b, src_b, packed, facing), n_ticks)
         feats = computed(lambda: pick(skills, (pb.owner * s_n + pb.slot)[:, None]))
-        moved, hits, from_pos = move_projectiles(state.replace(projectiles=pb), params, feats, fl)
+        moved, hits, from_pos = move_projectiles(state.replace(projectiles=pb), params, feats, flight)
         base = (jnp.arange(3)[:, None] * n_events + start + jnp.arange(size)[None]) * u_n  # [3, size]
         hit = hits[0] if isinstance(hits, tuple) else hits
         sums = if_any(hit, lambda: group_sums(seeds, unit_cols, feats, pb.owner, hits, from_pos, base, u_n, lanes))
         return moved.projectiles, sums
 
     if n_blocks == 1:
-        new, sums = block(p, flight, 0)
+        new, sums = block(p, got, src, 0)
         return state.replace(projectiles=new), sums
     zeros = tuple(jnp.zeros(state.hp.shape) for _ in range(5))
 
     def one_block(total_sums, xs):
-        pb, fl, i = xs
-        # A block where no arena of the batch has a live projectile is skipped.
-        new, sums = jax.lax.cond(jnp.any(pb.live), lambda: block(pb, fl, i * size), lambda: (pb, zeros))
+        pb, got_b, src_b, i = xs
+        # A block where no arena of the batch has a live projectile or a new one is skipped.
+        new, sums = jax.lax.cond(jnp.any(pb.live | got_b), lambda: block(pb, got_b, src_b, i * size),
+                                 lambda: (pb, zeros))
         # Whole points: the sums are exact in any order.
         return tuple(a + b for a, b in zip(total_sums, sums, strict=True)), new
 
     split = lambda x: x.reshape((n_blocks, size) + x.shape[1:])  # noqa: E731
-    sums, new = jax.lax.scan(one_block, zeros, (jax.tree.map(split, p), split(flight), jnp.arange(n_blocks)))
+    sums, new = jax.lax.scan(one_block, zeros, (jax.tree.map(split, p), split(got), split(src), jnp.arange(n_blocks)))
     return state.replace(projectiles=jax.tree.map(lambda x: x.reshape((m,) + x.shape[2:]), new)), sums

@@ -177,7 +177,6 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int)
     with jax.named_scope("fire"):
         state, inst_hits, inst_from, spawns = lanes.computed(
             lambda state=state: combat.fire(state, params, fired_tick, n_ticks))
-        after_fire = state
     skills, basic = combat.event_sources(sources, state.hp.ndim - 1)
     unit_cols = combat.unit_columns(state, params)  # the pool moves nobody: they serve every hit
     m = state.projectiles.live.shape[0]
@@ -188,7 +187,7 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int)
         state, basic_hits = combat.basic_attacks(state, params, dt)
         groups = ((*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))
         state, to_boss, back = lanes.materialize(
-            combat.resolve_hits(seeds, state, params, groups, unit_cols, first=(m, pool_sums)), since=after_fire)
+            combat.resolve_hits(seeds, state, params, groups, unit_cols, first=(m, pool_sums)), since=state)
     state = combat.regenerate(state, params, dt)
     state = state.replace(clock=state.clock + dt)
     players_dead = ~lanes.any_(state.alive[:-1])

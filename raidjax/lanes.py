@@ -183,6 +183,35 @@ def materialize(tree, since=None):
     return jax.tree.unflatten(treedef, leaves)
 
 
+def batch_level(fast, plain):
+    """``fast()``, or ``plain()`` where an outer ``vmap`` batches the lane program (both functions of no
+    arguments, closing over lane arrays, returning the same values: a pytree of arrays).
+
+    ``fast`` holds conditionals on the whole batch (``if_any``, the pool's blocks); an outer ``vmap``
+    (vmapped learners or generators, each with its arenas) would batch their predicates and run
+    every branch and then select, so there ``plain``, the same work without them, runs instead.
+    """
+    closed_fast, shapes = jax.make_jaxpr(fast, return_shape=True)()
+    closed_plain = jax.make_jaxpr(plain)()
+    leaves, treedef = jax.tree.flatten(shapes)
+    n_fast = len(closed_fast.consts)
+
+    def run(closed, consts):
+        return jex_core.jaxpr_as_fun(jex_core.ClosedJaxpr(closed.jaxpr, list(consts)))()
+
+    @custom_vmap
+    def program(*consts):
+        return run(closed_fast, consts[:n_fast])
+
+    @program.def_vmap
+    def rule(axis_size, in_batched, *consts):
+        axes = [0 if b else None for b in in_batched[n_fast:]]
+        out = jax.vmap(lambda *c: run(closed_plain, c), in_axes=axes, axis_size=axis_size)(*consts[n_fast:])
+        return out, [True] * len(out)
+
+    return jax.tree.unflatten(treedef, program(*closed_fast.consts, *closed_plain.consts))
+
+
 def if_any(pred: jax.Array, fn):
     """``fn()`` (a pytree of arrays), or zeros of its shapes without running it when ``pred`` (a
     ``bool`` lane array) is false everywhere, in every lane: work that no arena of the batch needs.
@@ -190,16 +219,18 @@ def if_any(pred: jax.Array, fn):
     Use it only where ``fn`` gives exact zeros (or values nothing selects) whenever ``pred`` is all
     false; then the result is the same to the bit whether ``fn`` ran or not. On XLA:CPU's lane program
     the lanes are the arenas, so one test covers the whole batch and the conditional skips the
-    work. Under an outer ``vmap`` that batches ``pred`` both branches run and each arena's own
-    test picks; off the CPU backend ``fn`` always runs.
+    work. Under an outer ``vmap`` (``batch_level``) and off the CPU backend ``fn`` always runs.
     """
     if jax.default_backend() != "cpu":
         return fn()
-    closed, shapes = jax.make_jaxpr(fn, return_shape=True)()  # traced once, run in the branch
-    leaves, treedef = jax.tree.flatten(shapes)
-    run = jex_core.jaxpr_as_fun(closed)
-    out = jax.lax.cond(jnp.any(pred), lambda: run(), lambda: [jnp.zeros(x.shape, x.dtype) for x in leaves])
-    return jax.tree.unflatten(treedef, out)
+
+    def fast():
+        closed, shapes = jax.make_jaxpr(fn, return_shape=True)()  # traced once, run in the branch
+        run = jex_core.jaxpr_as_fun(closed)
+        zeros = [jnp.zeros(x.shape, x.dtype) for x in jax.tree.leaves(shapes)]
+        return jax.tree.unflatten(jax.tree.structure(shapes), jax.lax.cond(jnp.any(pred), lambda: run(), lambda: zeros))
+
+    return batch_level(fast, fn)
 
 
 def computed(fn):

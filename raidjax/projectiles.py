@@ -19,7 +19,7 @@ import jax.numpy as jnp
 
 from raidjax import collide
 from raidjax.combat import EPS, F_HITS, F_RADIUS, F_SPEED, group_sums, spawn, touchable
-from raidjax.lanes import any_, argmin, computed, if_any, one_hot, pick, total
+from raidjax.lanes import any_, argmin, batch_level, computed, if_any, one_hot, pick, total
 from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Params, Projectiles, State
 
 POOL_BLOCK = 4  # pool slots per block of work
@@ -153,13 +153,17 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
         pb, flight = spawn(pb, (got_b, src_b, packed, facing), n_ticks)
         feats = computed(lambda: pick(skills, (pb.owner * s_n + pb.slot)[:, None]))
         moved, hits, from_pos = move_projectiles(state.replace(projectiles=pb), params, feats, flight)
-        base = (jnp.arange(3)[:, None] * n_events + start + jnp.arange(size)[None]) * u_n  # [3, size]
+        n = pb.live.shape[0]
+        base = (jnp.arange(3)[:, None] * n_events + start + jnp.arange(n)[None]) * u_n  # [3, n]
         hit = hits[0] if isinstance(hits, tuple) else hits
         sums = if_any(hit, lambda: group_sums(seeds, unit_cols, feats, pb.owner, hits, from_pos, base, u_n, lanes))
         return moved.projectiles, sums
 
+    def one_block_only():
+        return block(p, got, src, 0)
+
     if n_blocks == 1:
-        new, sums = block(p, got, src, 0)
+        new, sums = one_block_only()
         return state.replace(projectiles=new), sums
     zeros = tuple(jnp.zeros(state.hp.shape) for _ in range(5))
 
@@ -171,6 +175,12 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
         # Whole points: the sums are exact in any order.
         return tuple(a + b for a, b in zip(total_sums, sums, strict=True)), new
 
-    split = lambda x: x.reshape((n_blocks, size) + x.shape[1:])  # noqa: E731
-    sums, new = jax.lax.scan(one_block, zeros, (jax.tree.map(split, p), split(got), split(src), jnp.arange(n_blocks)))
-    return state.replace(projectiles=jax.tree.map(lambda x: x.reshape((m,) + x.shape[2:]), new)), sums
+    def in_blocks():
+        split = lambda x: x.reshape((n_blocks, size) + x.shape[1:])  # noqa: E731
+        sums, new = jax.lax.scan(one_block, zeros, (jax.tree.map(split, p), split(got), split(src),
+                                                    jnp.arange(n_blocks)))
+        return jax.tree.map(lambda x: x.reshape((m,) + x.shape[2:]), new), sums
+
+    # Under an outer vmap the blocks' conditionals would run every block: one block there.
+    new, sums = batch_level(in_blocks, one_block_only)
+    return state.replace(projectiles=new), sums

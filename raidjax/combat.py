@@ -411,8 +411,19 @@ def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, fi
 
 
 def group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lanes: tuple):
-    """One group of ``resolve_hits``: ``(damage_in, heal_in, dealt, dealt_to_boss, back_count)``, each
-    ``float32[U, ...]`` (by the unit hit for the first two, by owner for the rest)."""
+    """Resolve one group of hit events (``resolve_hits``' groups, or a block of the pool's).
+
+    Args:
+        seeds: ``uint32[2, ...]`` dice seeds; unit_cols: ``unit_columns``' dict of ``float32[U, ...]``.
+        f, owner, hits, from_pos: the group, as in ``resolve_hits`` (``n`` events).
+        base: ``[3, n]`` integers (numpy, or traced for the pool's blocks): ``(d * E + e) * U`` for
+            die ``d`` of event ``e``; the unit hit is added to it.
+        u_n: ``U``; lanes: the lane axes' shape.
+
+    Returns:
+        ``(damage_in, heal_in, dealt, dealt_to_boss, back_count)``, each ``float32[U, ...]`` (by the unit
+        hit for the first two, by owner for the rest), whole points.
+    """
     single = isinstance(hits, tuple)
     if single:  # one unit per event: [n, ...]
         hit, unit = hits

@@ -223,14 +223,11 @@ def if_any(pred: jax.Array, fn):
     """
     if jax.default_backend() != "cpu":
         return fn()
-
-    def fast():
-        closed, shapes = jax.make_jaxpr(fn, return_shape=True)()  # traced once, run in the branch
-        run = jex_core.jaxpr_as_fun(closed)
-        zeros = [jnp.zeros(x.shape, x.dtype) for x in jax.tree.leaves(shapes)]
-        return jax.tree.unflatten(jax.tree.structure(shapes), jax.lax.cond(jnp.any(pred), lambda: run(), lambda: zeros))
-
-    return batch_level(fast, fn)
+    closed, shapes = jax.make_jaxpr(fn, return_shape=True)()  # traced once: both programs run its jaxpr
+    run = jex_core.jaxpr_as_fun(closed)
+    zeros = [jnp.zeros(x.shape, x.dtype) for x in jax.tree.leaves(shapes)]
+    out = batch_level(lambda: jax.lax.cond(jnp.any(pred), lambda: run(), lambda: zeros), run)
+    return jax.tree.unflatten(jax.tree.structure(shapes), out)
 
 
 def computed(fn):

@@ -35,7 +35,7 @@ def pool_blocks(m: int) -> int:
 
 def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: jnp.ndarray):
     """Advance the pool one sub-step with swept collision; slot m flies ``flight[m]`` seconds
-    (``fire``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
+    (``combat.spawn``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
     hits before the next). ``feats``: the pool's source features, ``float32[M, 13, ...]``.
 
     Returns ``(state, hits, from_pos: float32[M, 2, ...])`` where ``from_pos`` is the projectile's

@@ -234,6 +234,24 @@ def test_area_hits_each_unit_only_once_while_it_lingers():
     assert bool(s1.projectiles.live[0])  # still lingering
 
 
+
+def test_empty_pool_slots_do_not_change_in_flight():
+    """What lets the CPU program skip pool blocks no arena uses: a slot with no projectile keeps
+    every field, whatever an earlier projectile left there (here a homing missile that expired)."""
+    p = make()
+    s = solo(p, (0.0, -4.0))
+    pr = s.projectiles
+    leftover = pr.replace(kind=pr.kind.at[1].set(1), pos=pr.pos.at[1].set(jnp.array([2.0, 3.0])),
+                          direction=pr.direction.at[1].set(jnp.array([0.0, 1.0])), target=pr.target.at[1].set(BOSS),
+                          life=pr.life.at[1].set(0.5), hit_mask=pr.hit_mask.at[1, BOSS].set(True))
+    live = leftover.replace(live=leftover.live.at[0].set(True), kind=leftover.kind.at[0].set(1),
+                            target=leftover.target.at[0].set(BOSS), life=leftover.life.at[0].set(5.0))
+    s1, _, _ = _move(s.replace(projectiles=live), p)
+    for before, after in zip(jax.tree.leaves(live), jax.tree.leaves(s1.projectiles), strict=True):
+        np.testing.assert_array_equal(np.asarray(after)[1:], np.asarray(before)[1:])
+    assert float(s1.projectiles.life[0]) < 5.0  # the live slot's clock runs
+
+
 # --- reference kill counts (GAME.md §4, §7) ----------------------------------------------------
 
 def test_reference_boss_dies_after_20_front_hits():

@@ -102,13 +102,14 @@ def start_casts(state: State, params: Params, requested: jnp.ndarray) -> State:
     _, valid = skill_targets(state, params)
     requested = requested | (params.skills.trigger == TRIGGER_PASSIVE)
     cast_time = params.skills.cast_time / haste_factor(params)
-    for s in range(state.casting.shape[1]):
-        start = requested[:, s] & usable_slot(state, params, valid, s)
-        state = state.replace(
-            casting=state.casting.at[:, s].set(state.casting[:, s] | start),
-            cast_left=state.cast_left.at[:, s].set(jnp.where(start, cast_time[:, s], state.cast_left[:, s])),
-        )
-    return state
+    # Columns, stacked where read: an in-place update per slot costs XLA:CPU a copy of the array.
+    casting = [state.casting[:, s] for s in range(state.casting.shape[1])]
+    left = [state.cast_left[:, s] for s in range(state.casting.shape[1])]
+    for s in range(len(casting)):
+        start = requested[:, s] & usable_slot(state.replace(casting=jnp.stack(casting, axis=1)), params, valid, s)
+        casting[s] = casting[s] | start
+        left[s] = jnp.where(start, cast_time[:, s], left[s])
+    return state.replace(casting=jnp.stack(casting, axis=1), cast_left=jnp.stack(left, axis=1))
 
 
 def expired(left: jnp.ndarray, params: Params) -> jnp.ndarray:

@@ -384,15 +384,8 @@ def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, fi
     unit_cols = unit_columns(state, params) if unit_cols is None else unit_cols
     damage_in, heal_in, dealt, dealt_to_boss, back_count = sums
     for f, owner, hits, from_pos in groups:
-        n = f.shape[0]
-        base = (np.arange(3)[:, None] * e_n + offset + np.arange(n)[None]) * u_n  # [3, n]
-        offset += n
-        hit = hits[0] if isinstance(hits, tuple) else hits
-        # A group no arena of the batch hits with adds nothing: skip it (the reference content has
-        # no instant skills and no basic attacks). Every sum below is of whole points, so adding
-        # the skipped group's zeros or not gives the same bits.
-        sums = if_any(hit, lambda f=f, owner=owner, hits=hits, from_pos=from_pos, base=base:
-                      group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n, lanes))
+        sums = group_sums(seeds, unit_cols, f, owner, hits, from_pos, e_n, offset, u_n, lanes)
+        offset += f.shape[0]
         damage_in, heal_in = damage_in + sums[0], heal_in + sums[1]
         dealt, dealt_to_boss, back_count = dealt + sums[2], dealt_to_boss + sums[3], back_count + sums[4]
 
@@ -411,20 +404,32 @@ def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, fi
     return state, dealt_to_boss, back_count
 
 
-def group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lanes: tuple):
+def group_sums(seeds, unit_cols, f, owner, hits, from_pos, n_events: int, first, u_n: int, lanes: tuple):
     """Resolve one group of hit events (``resolve_hits``' groups, or a block of the pool's).
+
+    A group that no arena of the batch hits with is skipped (``lanes.if_any``; the reference content
+    has no instant skills and no basic attacks): its sums are zeros, and every sum is of whole
+    points, so adding them or not gives the same bits.
 
     Args:
         seeds: ``uint32[2, ...]`` dice seeds; unit_cols: ``unit_columns``' dict of ``float32[U, ...]``.
         f, owner, hits, from_pos: the group, as in ``resolve_hits`` (``n`` events).
-        base: ``[3, n]`` integers (numpy, or traced for the pool's blocks): ``(d * E + e) * U`` for
-            die ``d`` of event ``e``; the unit hit is added to it.
+        n_events: ``E``, the sub-step's events; first: the group's first event (an ``int``, or a traced
+            ``int32[]`` for the pool's blocks): die ``d`` of event ``e`` on unit ``u`` is die number
+            ``(d * E + e) * U + u`` of the sub-step.
         u_n: ``U``; lanes: the lane axes' shape.
 
     Returns:
         ``(damage_in, heal_in, dealt, dealt_to_boss, back_count)``, each ``float32[U, ...]`` (by the unit
         hit for the first two, by owner for the rest), whole points.
     """
+    xp = np if isinstance(first, int) else jnp
+    base = (xp.arange(3)[:, None] * n_events + first + xp.arange(f.shape[0])[None]) * u_n  # [3, n]
+    hit = hits[0] if isinstance(hits, tuple) else hits
+    return if_any(hit, lambda: _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n, lanes))
+
+
+def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lanes: tuple):
     single = isinstance(hits, tuple)
     if single:  # one unit per event: [n, ...]
         hit, unit = hits

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 
 from raidjax import collide
 from raidjax.combat import EPS, F_HITS, F_RADIUS, F_SPEED, group_sums, spawn, touchable
-from raidjax.lanes import any_, argmin, batch_level, computed, if_any, one_hot, pick, total
+from raidjax.lanes import any_, argmin, batch_level, computed, one_hot, pick, total
 from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Params, Projectiles, State
 
 POOL_BLOCK = 4  # pool slots per block of work
@@ -153,10 +153,7 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
         pb, flight = spawn(pb, (got_b, src_b, packed, facing), n_ticks)
         feats = computed(lambda: pick(skills, (pb.owner * s_n + pb.slot)[:, None]))
         moved, hits, from_pos = move_projectiles(state.replace(projectiles=pb), params, feats, flight)
-        n = pb.live.shape[0]
-        base = (jnp.arange(3)[:, None] * n_events + start + jnp.arange(n)[None]) * u_n  # [3, n]
-        hit = hits[0] if isinstance(hits, tuple) else hits
-        sums = if_any(hit, lambda: group_sums(seeds, unit_cols, feats, pb.owner, hits, from_pos, base, u_n, lanes))
+        sums = group_sums(seeds, unit_cols, feats, pb.owner, hits, from_pos, n_events, start, u_n, lanes)
         return moved.projectiles, sums
 
     def one_block_only():

@@ -234,7 +234,6 @@ def test_area_hits_each_unit_only_once_while_it_lingers():
     assert bool(s1.projectiles.live[0])  # still lingering
 
 
-
 def test_empty_pool_slots_do_not_change_in_flight():
     """What lets the CPU program skip pool blocks no arena uses: a slot with no projectile keeps
     every field, whatever an earlier projectile left there (here a homing missile that expired)."""

@@ -80,7 +80,6 @@ def test_materialize_passes_the_leaves_of_since_by_the_conditional():
     assert ("conditional" in gated.lower(jnp.arange(3.0), jnp.int32(1)).as_text("hlo")) == on_cpu
 
 
-
 def test_computed_returns_fn_and_passes_closed_over_leaves_by():
     """Values computed inside the conditional come back unchanged; a leaf ``fn`` only closed over is
     the very same array (no conditional output, no copy)."""

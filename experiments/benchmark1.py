@@ -90,6 +90,7 @@ class Scale:
     heatmap_ranges: tuple[float, ...]
     checkpoint_chunks: int  # checkpoint every this many chunks
     trainer: tuple[tuple[str, object], ...] = ()
+    fast_compile: bool = False  # compile the learner with trainers.loop.FAST_COMPILE (numbers not read)
 
 
 SCALES = {
@@ -98,7 +99,8 @@ SCALES = {
     "smoke": Scale("cpu", total_steps=256, seeds=1, population=1, games=8, heatmap_games=4,
                    heatmap_ranges=(5.0, 13.0), checkpoint_chunks=1,
                    trainer=(("n_arenas", 16), ("n_steps", 8), ("n_minibatches", 2), ("update_epochs", 1),
-                            ("hidden", 8), ("layers", 1), ("heads", 1), ("updates_per_chunk", 1))),
+                            ("hidden", 8), ("layers", 1), ("heads", 1), ("updates_per_chunk", 1)),
+                   fast_compile=True),
     # about 1 h 50 min on 2 CPU cores (docs/RESULTS.md): the cpu preset, 2 seeds, populations of 2,
     # 1.5 M decisions per run
     "cpu": Scale("cpu", total_steps=1_500_000, seeds=2, population=2, games=500, heatmap_games=500,
@@ -187,7 +189,8 @@ def stage_train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, m
         return {f"win/{r['name']}/{r['seed']}": float(w) for r, w in zip(runs, win, strict=True)}
 
     learner = mapoca_learner(make_trainer(cfg, redraw_ranges=True), _run_inputs(runs, base_seed), len(runs),
-                             row=row, describe=_training_wins)
+                             row=row, describe=_training_wins,
+                             compiler_options=loop.FAST_COMPILE if scale.fast_compile else None)
     rf.log(f"train: {len(runs)} runs x {cfg.num_chunks} chunks x {cfg.updates_per_chunk * cfg.decisions_per_update} "
            "decisions")
     done = loop.train(learner, rf.path("checkpoints", "mapoca"), rf.out / "train", log=lambda s: rf.log(f"train: {s}"),

@@ -89,7 +89,7 @@ class Scale:
     @property
     def compiler_options(self) -> dict | None:
         """XLA compiler options of this scale's compiles (``None``: the defaults)."""
-        return {"xla_backend_optimization_level": 0} if self.fast_compile else None
+        return loop.FAST_COMPILE if self.fast_compile else None
 
 
 SCALES = {

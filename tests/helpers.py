@@ -12,6 +12,7 @@ Expected numbers in the tests are derived by hand from docs/GAME.md, never copie
 from __future__ import annotations
 
 import math
+import os
 
 import chex
 import jax
@@ -41,6 +42,12 @@ __all__ = [
     "ACTION_HEURISTIC", "BOSS", "CAST_1", "CLEAN1", "DT", "DRAG", "KEY", "NOOP", "P", "PASSIVE_BOSS", "RESET",
     "STEP", "TICK", "T_ROLL", "acts", "events", "make", "rollout", "run", "scenario", "series",
 ]
+
+
+def suite_opt_level() -> list[str]:
+    """The suite's XLA optimisation level (``conftest.py``) as a list of ``XLA_FLAGS`` items, for
+    child processes that set their own ``XLA_FLAGS``."""
+    return [f for f in os.environ.get("XLA_FLAGS", "").split() if f.startswith("--xla_backend_optimization_level")]
 
 
 def make(passive_boss: bool = True, boss_overrides: dict | None = None, **kw) -> raidjax.Params:

@@ -7,6 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import pcg_state as _state
+from helpers import suite_opt_level
 
 import raidjax
 from raidjax import pcg, policies
@@ -273,6 +274,7 @@ def test_vmapped_learners_do_not_deadlock_xla_cpu():
     import sys
 
     env = {k: v for k, v in os.environ.items() if k not in ("RAIDJAX_KEEP_XLA_FLAGS", "XLA_FLAGS")}
+    env["XLA_FLAGS"] = " ".join(suite_opt_level())  # the child adds raidjax's flags itself
     env["PYTHONPATH"] = os.pathsep.join([os.getcwd(), env.get("PYTHONPATH", "")])
     code = "import raidjax\nassert raidjax.use_recommended_xla_flags()\n" + _VMAPPED_LEARNERS
     out = subprocess.run([sys.executable, "-W", "error::RuntimeWarning", "-c", code], env=env,

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from helpers import suite_opt_level
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -41,8 +42,10 @@ np.savez(sys.argv[1] + "_mapoca.npz", *[np.asarray(x) for x in jax.tree.leaves((
 
 def run(code: str, out: Path, devices: int) -> str:
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    flags = suite_opt_level()  # the child adds raidjax's flags itself
     if devices > 1:
-        env["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={devices}"
+        flags.append(f"--xla_force_host_platform_device_count={devices}")
+    env["XLA_FLAGS"] = " ".join(flags)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
     done = subprocess.run([sys.executable, "-c", code, str(out)], env=env, capture_output=True, text=True,
                           timeout=600, cwd=ROOT)

@@ -47,7 +47,7 @@ def _describe_mapoca(row: dict) -> str:
 
 
 def mapoca_learner(trainer, init_args: tuple, n_runs: int, row: Callable[[dict], dict] = summarize,
-                   describe: Callable[[dict], str] = _describe_mapoca) -> Learner:
+                   describe: Callable[[dict], str] = _describe_mapoca, compiler_options: dict | None = None) -> Learner:
     """MA-POCA (``trainers.mapoca.make_trainer``) as a ``Learner`` over ``n_runs`` runs.
 
     Args:
@@ -56,6 +56,7 @@ def mapoca_learner(trainer, init_args: tuple, n_runs: int, row: Callable[[dict],
             tables where the runs differ).
         row: host metrics of a chunk -> the row's learner fields (default: ``summarize``).
         describe: last row -> progress text.
+        compiler_options: XLA options of its compiles (``trainers.loop.Learner``).
 
     Returns:
         The learner: one row per chunk (``chunk``, ``update``, ``env_steps``, ``seconds``,
@@ -74,7 +75,7 @@ def mapoca_learner(trainer, init_args: tuple, n_runs: int, row: Callable[[dict],
     return Learner(init=jax.vmap(trainer.init), init_args=init_args, chunk=chunk,
                    policy=lambda s: s.params["actor"], rows=rows, describe=describe, config=cfg.to_dict(),
                    n_runs=n_runs, num_updates=cfg.num_updates, updates_per_chunk=cfg.updates_per_chunk,
-                   steps_per_update=cfg.decisions_per_update, donate=True)
+                   steps_per_update=cfg.decisions_per_update, donate=True, compiler_options=compiler_options)
 
 
 def ppo_learner(config: PPOConfig, keys: jax.Array, targets: jax.Array, updates_per_chunk: int,
@@ -149,7 +150,7 @@ def evaluate_teams(out: Path, cfg: Config, n_seeds: int, key: jax.Array) -> dict
 
 
 def run_mapoca(cfg: Config, out: str | Path, *, preset: str = "cpu", seeds: int = 1, seed: int = 0,
-               resume: bool = False, max_chunks: int | None = None) -> dict:
+               resume: bool = False, max_chunks: int | None = None, compiler_options: dict | None = None) -> dict:
     """Train MA-POCA in the run folder ``out`` (or resume it), then evaluate the teams.
 
     Args:
@@ -158,6 +159,7 @@ def run_mapoca(cfg: Config, out: str | Path, *, preset: str = "cpu", seeds: int 
         out: the run folder. preset: the preset's name, recorded. seeds: seeds trained together
             (vmapped). seed: base PRNG seed. resume: continue the run in ``out``.
         max_chunks: stop after this many chunks (checkpointed; rerun with ``resume``).
+        compiler_options: XLA options of the training's compiles (``trainers.loop.Learner``).
 
     Returns:
         The result (also ``out/result.json`` and the last stdout line): ``win_rate``,
@@ -172,7 +174,7 @@ def run_mapoca(cfg: Config, out: str | Path, *, preset: str = "cpu", seeds: int 
         return rf.already_finished()
     _say(f"{cfg.num_updates} updates x {cfg.decisions_per_update} decisions x {seeds} seeds; {machine()}")
     keys = jax.random.split(jax.random.PRNGKey(seed), seeds)
-    learner = mapoca_learner(make_trainer(cfg), (keys,), seeds)
+    learner = mapoca_learner(make_trainer(cfg), (keys,), seeds, compiler_options=compiler_options)
     every = max(1, -(-cfg.checkpoint_every // cfg.updates_per_chunk))
     done = train(learner, rf.out / "checkpoints", rf.out, log=_say, checkpoint_every=every, max_chunks=max_chunks)
     if not done.finished:
@@ -205,7 +207,8 @@ def _rounded(x, key: str = ""):
 
 def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", seeds: int = 1, seed: int = 0,
                   chunk: int = 4, resume: bool = False, max_chunks: int | None = None,
-                  evaluation: dict | None = None, tester: str | Path | tuple | None = None) -> dict:
+                  evaluation: dict | None = None, tester: str | Path | tuple | None = None,
+                  compiler_options: dict | None = None) -> dict:
     """Train PPO-PCGRL in the run folder ``out`` (or resume it), then measure it beside PCG-HR and
     PCG-RD.
 
@@ -219,6 +222,7 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
         tester: a trained MA-POCA run folder playing the playtests (seed 0, sampled actions)
             instead of PT-HR, in training and evaluation; or a loaded ``(policy, weights)`` pair
             (``trainers.mapoca.load_policy``, ``raidjax.policies.OrHeuristic``).
+        compiler_options: XLA options of the training's compiles (``trainers.loop.Learner``).
 
     Returns:
         The result (also ``out/result.json`` and the last stdout line): ``mean_error`` (PPO),
@@ -246,7 +250,7 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
     keys = jax.random.split(jax.random.key(seed), len(labels))
     _say(f"preset={preset} groups={len(labels)} updates={config.num_updates} "
            f"steps/update={config.n_arenas * config.n_steps} n_games={config.n_games}")
-    learner = ppo_learner(config, keys, jnp.asarray(pairs), max(1, chunk), **team)
+    learner = ppo_learner(config, keys, jnp.asarray(pairs), max(1, chunk), compiler_options, **team)
     done = train(learner, rf.out / "checkpoints", rf.out, log=_say, max_chunks=max_chunks, max_to_keep=2)
     if not done.finished:
         return {"stopped_at_update": done.update}

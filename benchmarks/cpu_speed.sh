@@ -7,7 +7,7 @@
 # decision's time goes (step_profile.py), the XLA cost of one sub-step with either observation
 # (step_cost.py), the MA-POCA learner's update (train_throughput.py) and the README's first command.
 #
-#     bash benchmarks/cpu_speed.sh OUT     # about 20 min on 2 cores; needs jaxmarl (pip install -e ".[jaxmarl]")
+#     bash benchmarks/cpu_speed.sh OUT     # about 7 min on 2 cores; needs jaxmarl (pip install -e ".[jaxmarl]")
 set -u
 out=${1:?usage: bash benchmarks/cpu_speed.sh OUT}
 mkdir -p "$out"

@@ -85,11 +85,6 @@ class Scale:
     preset: str = "cpu"
     fast_compile: bool = False
 
-    @property
-    def compiler_options(self) -> dict | None:
-        """XLA options of the learners' compiles (``None``: the defaults)."""
-        return loop.FAST_COMPILE if self.fast_compile else None
-
 
 SCALES = {
     # A few minutes of compiling: tiny learners and a few games (used by the tests; its numbers mean nothing).
@@ -170,7 +165,7 @@ def win_rates(key, skills: np.ndarray, n_games: int, team: Team, tester=raidjax.
 def stage_tester(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
     out = rf.out / "tester"
     return run_mapoca(tester_config(scale, team), out, preset=scale.preset, seed=seed,
-                      resume=(out / "config.json").exists(), compiler_options=scale.compiler_options)
+                      resume=(out / "config.json").exists(), compiler_options=loop.compiler_options(scale.fast_compile))
 
 
 def train_specialists(rf: RunFolder, scale: Scale, team: Team, skills: np.ndarray, seed: int) -> dict:
@@ -185,7 +180,7 @@ def train_specialists(rf: RunFolder, scale: Scale, team: Team, skills: np.ndarra
     keys = jax.random.split(jax.random.PRNGKey(seed + 31), len(skills))
     learner = mapoca_learner(trainer, (keys, contents, tables), len(skills),
                              describe=lambda r: f"training win rate {r['win_rate']:.3f}",
-                             compiler_options=scale.compiler_options)
+                             compiler_options=loop.compiler_options(scale.fast_compile))
     every = max(1, -(-cfg.checkpoint_every // cfg.updates_per_chunk))
     done = loop.train(learner, rf.path("specialists", "checkpoints"), rf.out / "specialists",
                       log=lambda s: rf.log(f"specialists: {s}"), checkpoint_every=every)
@@ -238,7 +233,8 @@ def train_generator(rf: RunFolder, scale: Scale, team: Team, name: str, seed: in
     out = rf.out / f"generator_{name}"
     return run_ppo_pcgrl(config, out, preset=scale.preset, seed=seed, chunk=scale.chunk,
                          evaluation={"eval_episodes": 0}, tester=testers(rf)[name],
-                         resume=(out / "config.json").exists(), compiler_options=scale.compiler_options)
+                         resume=(out / "config.json").exists(),
+                         compiler_options=loop.compiler_options(scale.fast_compile))
 
 
 def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:

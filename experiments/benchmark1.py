@@ -190,7 +190,7 @@ def stage_train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, m
 
     learner = mapoca_learner(make_trainer(cfg, redraw_ranges=True), _run_inputs(runs, base_seed), len(runs),
                              row=row, describe=_training_wins,
-                             compiler_options=loop.FAST_COMPILE if scale.fast_compile else None)
+                             compiler_options=loop.compiler_options(scale.fast_compile))
     rf.log(f"train: {len(runs)} runs x {cfg.num_chunks} chunks x {cfg.updates_per_chunk * cfg.decisions_per_update} "
            "decisions")
     done = loop.train(learner, rf.path("checkpoints", "mapoca"), rf.out / "train", log=lambda s: rf.log(f"train: {s}"),

@@ -86,11 +86,6 @@ class Scale:
     fast_compile: bool = False
     bootstrap: int = 1000
 
-    @property
-    def compiler_options(self) -> dict | None:
-        """XLA compiler options of this scale's compiles (``None``: the defaults)."""
-        return loop.FAST_COMPILE if self.fast_compile else None
-
 
 SCALES = {
     # Seconds: a tiny learner, a few games per measurement, 4-decision paper-protocol episodes (used
@@ -168,7 +163,8 @@ class _Learner:
         self.G = len(self.labels)
         self.steps_per_update = self.config.n_arenas * self.config.n_steps
         keys = jax.random.split(jax.random.key(seed), self.G)
-        self.learner = ppo_learner(self.config, keys, jnp.asarray(pairs), scale.chunk, scale.compiler_options)
+        self.learner = ppo_learner(self.config, keys, jnp.asarray(pairs), scale.chunk,
+                                   loop.compiler_options(scale.fast_compile))
         self.ckpt = run.out / "checkpoints" / "ppo"
 
     def restore(self):

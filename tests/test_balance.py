@@ -5,6 +5,7 @@ with its skill-gap table recomputed from the raw outputs."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 
 import jax
@@ -102,6 +103,22 @@ def test_pcg_heuristic_moves_the_picked_parameter_toward_easier_in_any_space():
 def _rows(path):
     with open(path, newline="") as f:
         return list(csv.DictReader(f))
+
+
+def test_a_run_saved_before_fast_compile_existed_still_resumes(tmp_path):
+    """The budgets a balancing run records gained ``fast_compile``: a run saved without it played at
+    XLA's default level, so it resumes under a scale that keeps the default, and only there."""
+    from trainers.runfolder import RunFolderError
+
+    def settings(scale):
+        return {"experiment": "balance", "budgets": dataclasses.asdict(balance.SCALES[scale])}
+
+    old = settings("cpu")
+    del old["budgets"]["fast_compile"]  # as every run folder saved before the field existed
+    RunFolder(tmp_path / "run", old)
+    RunFolder(tmp_path / "run", settings("cpu"), resume=True)
+    with pytest.raises(RunFolderError, match="budgets.fast_compile: saved null, now true"):
+        RunFolder(tmp_path / "run", {**old, "budgets": {**old["budgets"], "fast_compile": True}}, resume=True)
 
 
 def test_skill_gap_table_is_recomputed_from_the_raw_outputs(tmp_path):

@@ -103,6 +103,11 @@ class Trained:
 FAST_COMPILE = {"xla_backend_optimization_level": 0}
 
 
+def compiler_options(fast_compile: bool) -> dict | None:
+    """``FAST_COMPILE`` if ``fast_compile`` (a scale's flag), else ``None`` (XLA's defaults)."""
+    return FAST_COMPILE if fast_compile else None
+
+
 def _lowering_state(state, n_runs: int):
     """What a chunk is lowered with: on one device (the runs not split, ``batch_sharding``) only
     the shapes and dtypes of ``state``, since a restored state is committed to its device and a

@@ -47,7 +47,7 @@ class RunFolderError(ValueError):
 
 # Settings added after run folders were first saved, with the value every older run played with:
 # a saved run without the key resumes as long as the new value is that one.
-ADDED_SETTINGS = {"senses": "raidjax"}
+ADDED_SETTINGS = {"senses": "raidjax", "fast_compile": False}
 
 
 def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:

@@ -277,37 +277,42 @@ def spawn(p: Projectiles, spawns, n_ticks: int) -> tuple[Projectiles, jnp.ndarra
  F_HITS) = range(13)
 
 
-def effect_table(params: Params) -> jnp.ndarray:
-    """Everything a hit needs to know about its source, ``float32[U * (S + 1), 13]`` (one arena's
-    ``params``, no lanes: ``raidjax.env`` builds it once per decision).
-
-    Row ``u * (S + 1) + s`` is unit u's skill slot s; row ``u * (S + 1) + S`` its basic attack.
-    """
+def effect_sources(params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """Everything a hit needs to know about its source (a lane function): the skill slots' rows
+    ``float32[U * S, 13, ...]`` (row ``u * S + s``) and the basic attacks' ``float32[U, 13, ...]``,
+    columns ``F_BASE ... F_HITS``. ``raidjax.env`` builds them once per decision, in the lanes."""
     sk, st = params.skills, params.stats
-    u_n, s_n = sk.coefficient.shape
-    attack = jnp.concatenate([sk.hit_type == HIT_ATTACK, jnp.ones((u_n, 1), bool)], axis=1)
-    coef = jnp.concatenate([sk.coefficient, jnp.ones((u_n, 1))], axis=1)
+    u_n, s_n = sk.coefficient.shape[:2]
     str_scale = 1.0 + (st.strength - NEUTRAL_PRIMARY) / 100.0
     int_scale = 1.0 + (st.intelligence - NEUTRAL_PRIMARY) / 100.0
-    power = jnp.where(attack, st.attack_power[:, None], st.spell_power[:, None])
-    scale = jnp.where(attack, str_scale[:, None], int_scale[:, None])
-    base = jnp.floor(coef * power + 1e-3) * scale  # GAME.md §6: int(coefficient x power)
-    heal = jnp.floor(coef * (st.spell_power * int_scale)[:, None] + 1e-3)
+    back = jnp.where(params.team == 0, st.back_attack_multiplier * (1.0 + st.mastery / 100.0), 1.0)
+    per_unit = [st.critical / 100.0, st.crit_multiplier, back, 1.0 + st.versatility / 100.0, st.agility,
+                params.team.astype(jnp.float32)]
 
-    def per_unit(x):
-        return jnp.broadcast_to(x[:, None], (u_n, s_n + 1))
+    def rows(attack, coef, per_source):  # [U, n, ...] each -> [U, n, 13, ...]
+        power = jnp.where(attack, st.attack_power[:, None], st.spell_power[:, None])
+        scale = jnp.where(attack, str_scale[:, None], int_scale[:, None])
+        base = jnp.floor(coef * power + 1e-3) * scale  # GAME.md §6: int(coefficient x power)
+        heal = jnp.floor(coef * (st.spell_power * int_scale)[:, None] + 1e-3)
+        cols = [base, heal, *(x[:, None] for x in per_unit), *per_source]
+        return jnp.stack([jnp.broadcast_to(c, jnp.broadcast_shapes(*(x.shape for x in cols))) for c in cols], axis=2)
 
-    def per_slot(x, basic_value):
-        return jnp.concatenate([x.astype(jnp.float32), jnp.full((u_n, 1), basic_value)], axis=1)
+    as_f32 = lambda x: x.astype(jnp.float32)  # noqa: E731
+    skills = rows(sk.hit_type == HIT_ATTACK, sk.coefficient,
+                  [as_f32(sk.affect_enemy), as_f32(sk.affect_ally), sk.projectile_speed, sk.projectile_radius,
+                   as_f32(sk.hit_count)])
+    one = jnp.ones_like(st.attack_power)[:, None]  # [U, 1, ...]: one basic attack per unit
+    basic = rows(one > 0, one, [one, 0.0 * one, 0.0 * one, 0.0 * one, one])
+    return skills.reshape((u_n * s_n,) + skills.shape[2:]), basic[:, 0]
 
-    cols = [
-        base, heal, per_unit(st.critical / 100.0), per_unit(st.crit_multiplier),
-        per_unit(jnp.where(params.team == 0, st.back_attack_multiplier * (1.0 + st.mastery / 100.0), 1.0)),
-        per_unit(1.0 + st.versatility / 100.0), per_unit(st.agility), per_unit(params.team.astype(jnp.float32)),
-        per_slot(sk.affect_enemy, 1.0), per_slot(sk.affect_ally, 0.0), per_slot(sk.projectile_speed, 0.0),
-        per_slot(sk.projectile_radius, 0.0), per_slot(sk.hit_count, 1.0),
-    ]
-    return jnp.stack(cols, axis=-1).reshape(u_n * (s_n + 1), len(cols))
+
+def effect_table(params: Params) -> jnp.ndarray:
+    """``effect_sources`` as one table ``float32[U * (S + 1), 13]`` (one arena's ``params``, no lanes):
+    row ``u * (S + 1) + s`` is unit u's skill slot s, row ``u * (S + 1) + S`` its basic attack."""
+    skills, basic = effect_sources(params)
+    u_n = basic.shape[0]
+    rows = jnp.concatenate([skills.reshape((u_n, -1) + skills.shape[1:]), basic[:, None]], axis=1)
+    return rows.reshape((-1,) + rows.shape[2:])
 
 
 def source_index(owner: jnp.ndarray, slot: jnp.ndarray, n_slots: int) -> jnp.ndarray:
@@ -315,17 +320,10 @@ def source_index(owner: jnp.ndarray, slot: jnp.ndarray, n_slots: int) -> jnp.nda
     return owner * (n_slots + 1) + slot
 
 
-def split_table(table: jnp.ndarray, n_slots: int) -> tuple[jnp.ndarray, jnp.ndarray]:
-    """``effect_table`` rows (with lanes, ``float32[U * (S + 1), 13, ...]``) as the skill slots' rows
-    ``float32[U * S, 13, ...]`` (row ``u * S + s``) and the basic attacks' ``float32[U, 13, ...]``."""
-    rows = table.reshape((-1, n_slots + 1) + table.shape[1:])  # [U, S + 1, 13, ...]
-    return rows[:, :n_slots].reshape((-1,) + table.shape[1:]), rows[:, n_slots]
-
-
 def event_sources(sources: tuple[jnp.ndarray, jnp.ndarray], n_lanes: int):
     """Source features ``float32[n, 13, ...]`` and owners ``int32[n, ...]`` of two groups of a
     sub-step's hit events: every unit's ``S`` skill slots (instant skills) and every unit's basic
-    attack (the pool's are ``raidjax.projectiles``'). ``sources``: ``split_table``'s ``(skills, basic)``;
+    attack (the pool's are ``raidjax.projectiles``'). ``sources``: ``effect_sources``' ``(skills, basic)``;
     ``n_lanes``: how many lane axes the arrays carry.
 
     Returns ``((skill_feats, skill_owner), (basic_feats, basic_owner))``.

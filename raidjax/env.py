@@ -143,15 +143,17 @@ def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Par
     return state.replace(pos=movement.set_boss(state.pos, pos_b))
 
 
-def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int):
+def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int, running=True):
     """Advance by ``n_ticks`` 0.02 s ticks; a lane function (``raidjax.lanes``: one arena's shapes, then
     any lane axes ``...``).
 
     Args:
         seeds: ``uint32[2, ...]`` dice seeds of this sub-step (``utils.dice_seeds``).
         state: ``State`` lane arrays; actions: ``int32[P, ...]`` (checked); params: ``Params`` lane arrays.
-        sources: ``combat.split_table``'s ``(float32[U * S, 13, ...], float32[U, 13, ...])``.
+        sources: ``combat.effect_sources``' ``(float32[U * S, 13, ...], float32[U, 13, ...])``.
         n_ticks: ticks in the sub-step (static).
+        running: ``bool[...]``; where false the projectile pool comes out unchanged to the bit (nothing
+            spawns, nothing flies), so the caller freezes an ended game's other fields only.
 
     Returns:
         ``(state, to_boss: float32[U, ...], back: int32[U, ...])``: damage each unit dealt to the boss
@@ -181,8 +183,9 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int)
     unit_cols = combat.unit_columns(state, params)  # the pool moves nobody: they serve every hit
     m = state.projectiles.live.shape[0]
     with jax.named_scope("projectiles"):
-        state, pool_sums = projectiles.fly(seeds, state, params, sources[0], spawns, n_ticks, unit_cols,
-                                           m + skills[0].shape[0] + basic[0].shape[0])
+        got, *rest = spawns
+        state, pool_sums = projectiles.fly(seeds, state, params, sources[0], (got & running, *rest), n_ticks,
+                                           unit_cols, m + skills[0].shape[0] + basic[0].shape[0], running)
     with jax.named_scope("hits"):
         state, basic_hits = combat.basic_attacks(state, params, dt)
         groups = ((*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))
@@ -197,11 +200,11 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int)
     return state.replace(result=result.astype(jnp.int32)), to_boss, back
 
 
-def _advance(seeds, state: State, actions, params: Params, table):
+def _advance(seeds, state: State, actions, params: Params):
     """Play the decision's sub-steps (one per row of ``seeds: uint32[n_sub, 2, ...]``) on lane arrays;
     a finished arena stays as it ended. Returns ``(state, to_boss: float32[U, ...], back: int32[U, ...])``."""
     n_ticks = TICKS_PER_DECISION // seeds.shape[0]
-    sources = combat.split_table(table, state.casting.shape[1])  # once per decision, not per sub-step
+    sources = combat.effect_sources(params)  # once per decision, not per sub-step
 
     def one_substep(carry, xs):
         sub_seeds, i = xs
@@ -209,10 +212,12 @@ def _advance(seeds, state: State, actions, params: Params, table):
         # The gate must be a value XLA cannot fold: the loop counter, or with a single sub-step (its
         # loop is unrolled) the first lane's seed compared with itself plus one.
         first = sub_seeds.reshape(-1)[0]
-        with lanes.gate(i >= 0 if seeds.shape[0] > 1 else first != first + 1):
-            nxt, tb, bk = substep(sub_seeds, cur, actions, params, sources, n_ticks)
         running = cur.result == RUNNING
-        return (_select(running, nxt, cur), to_boss + jnp.where(running, tb, 0.0),
+        with lanes.gate(i >= 0 if seeds.shape[0] > 1 else first != first + 1):
+            nxt, tb, bk = substep(sub_seeds, cur, actions, params, sources, n_ticks, running)
+        # The pool of an ended game stands still in the sub-step already: freezing the rest is enough.
+        frozen = _select(running, nxt.replace(projectiles=None), cur.replace(projectiles=None))
+        return (frozen.replace(projectiles=nxt.projectiles), to_boss + jnp.where(running, tb, 0.0),
                 back + jnp.where(running, bk, 0)), None
 
     zeros = (jnp.zeros(state.hp.shape), jnp.zeros(state.hp.shape, jnp.int32))
@@ -281,7 +286,7 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     was_done = state.result != RUNNING
     table = combat.effect_table(params)
     seeds = jax.vmap(dice_seeds)(jax.random.split(key, n_sub))
-    new, to_boss, back = advance(seeds, state.replace(memory=None), actions, params, table)
+    new, to_boss, back = advance(seeds, state.replace(memory=None), actions, params)
     new = new.replace(memory=state.memory)
     decision = new.decision + 1
     result = jnp.where((new.result == RUNNING) & (decision >= params.config.max_decisions), DRAW, new.result)

@@ -124,18 +124,19 @@ def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: j
 
 
 def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_ticks: int, unit_cols,
-        n_events: int):
+        n_events: int, running=True):
     """Spawn this sub-step's projectiles, move the pool and resolve its hits, block by block (see
     the module docstring).
 
     Args:
         seeds: ``uint32[2, ...]`` the sub-step's dice seeds.
         state: the state after ``combat.fire``.
-        skills: ``float32[U * S, 13, ...]`` the effect table's skill rows (``combat.split_table``).
+        skills: ``float32[U * S, 13, ...]`` the skill slots' source rows (``combat.effect_sources``).
         spawns: ``combat.fire``'s spawns (``combat.spawn`` writes them).
         n_ticks: ticks in the sub-step (static).
         unit_cols: ``combat.unit_columns(state, params)``.
         n_events: ``E``, the sub-step's hit events (the pool's are events ``0..M-1``).
+        running: ``bool[...]``; where false nothing flies (with no spawns, the pool is unchanged).
 
     Returns:
         ``(state, sums)``: the state with the pool moved, and ``combat.group_sums`` of the pool's
@@ -151,6 +152,7 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
 
     def block(pb: Projectiles, got_b, src_b, start):
         pb, flight = spawn(pb, (got_b, src_b, packed, facing), n_ticks)
+        flight = jnp.where(running, flight, 0.0)
         feats = computed(lambda: pick(skills, (pb.owner * s_n + pb.slot)[:, None]))
         moved, hits, from_pos = move_projectiles(state.replace(projectiles=pb), params, feats, flight)
         sums = group_sums(seeds, unit_cols, feats, pb.owner, hits, from_pos, n_events, start, u_n, lanes)
@@ -164,19 +166,22 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
         return state.replace(projectiles=new), sums
     zeros = tuple(jnp.zeros(state.hp.shape) for _ in range(5))
 
-    def one_block(total_sums, xs):
-        pb, got_b, src_b, i = xs
+    def one_block(i, carry):
+        start = i * size
+        cut = lambda x: jax.lax.dynamic_slice_in_dim(x, start, size)  # noqa: E731
+
+        def run(carry):
+            pool, total_sums = carry
+            new, sums = block(jax.tree.map(cut, pool), cut(got), cut(src), start)
+            pool = jax.tree.map(lambda x, y: jax.lax.dynamic_update_slice_in_dim(x, y, start, 0), pool, new)
+            # Whole points: the sums are exact in any order.
+            return pool, tuple(a + b for a, b in zip(total_sums, sums, strict=True))
+
         # A block where no arena of the batch has a live projectile or a new one is skipped.
-        new, sums = jax.lax.cond(jnp.any(pb.live | got_b), lambda: block(pb, got_b, src_b, i * size),
-                                 lambda: (pb, zeros))
-        # Whole points: the sums are exact in any order.
-        return tuple(a + b for a, b in zip(total_sums, sums, strict=True)), new
+        return jax.lax.cond(jnp.any(cut(carry[0].live) | cut(got)), run, lambda c: c, carry)
 
     def in_blocks():
-        split = lambda x: x.reshape((n_blocks, size) + x.shape[1:])  # noqa: E731
-        sums, new = jax.lax.scan(one_block, zeros, (jax.tree.map(split, p), split(got), split(src),
-                                                    jnp.arange(n_blocks)))
-        return jax.tree.map(lambda x: x.reshape((m,) + x.shape[2:]), new), sums
+        return jax.lax.fori_loop(0, n_blocks, one_block, (p, zeros))
 
     # Under an outer vmap the blocks' conditionals would run every block: one block there.
     new, sums = batch_level(in_blocks, one_block_only)

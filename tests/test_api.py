@@ -9,7 +9,7 @@ import numpy as np
 from helpers import ACTION_HEURISTIC, BOSS, CAST_1, KEY, NOOP, RESET, STEP, T_ROLL, acts, make, rollout, run, scenario
 
 import raidjax
-from raidjax.types import FORWARD, N_ACTIONS
+from raidjax.types import FORWARD, N_ACTIONS, PROJ_STRAIGHT
 
 INFO_KEYS = {"terminated", "truncated", "result", "alive", "damage_dealt", "back_attack"}
 VSTEP = jax.jit(jax.vmap(raidjax.step))
@@ -102,6 +102,29 @@ def test_done_freezes_state_and_pays_nothing():
         assert bool(done) and int(info["result"]) == 1
         np.testing.assert_array_equal(np.asarray(reward), 0.0)
         np.testing.assert_array_equal(np.asarray(info["damage_dealt"]), 0.0)
+
+
+def test_a_game_that_ends_inside_a_decision_stops_its_projectiles_there():
+    """Five sub-steps; the boss dies in the first (an instant hit fired at once). A straight missile
+    in flight, far from everyone, flies that sub-step (0.02 s at 20 units/s) and no further: an ended
+    game's pool stands still for the rest of the decision, as the rest of its state does."""
+    cfg = raidjax.EnvConfig.from_rules("clean", n_substeps=5)
+    p = make(config=cfg, **{"skill1.projectile_speed": 0.0, "skill1.cast_time": 0.0})
+    s = scenario(p, players=((0, -4), (1, -4), (11, -11)), boss=(0, 0), alive=(True, True, False),
+                 hp=(None, None, None, 50.0))
+    pr = s.projectiles
+    s = s.replace(projectiles=pr.replace(
+        live=pr.live.at[0].set(True), kind=pr.kind.at[0].set(PROJ_STRAIGHT), owner=pr.owner.at[0].set(BOSS),
+        slot=pr.slot.at[0].set(0), pos=pr.pos.at[0].set(jnp.array([-5.0, 12.0])),
+        direction=pr.direction.at[0].set(jnp.array([-1.0, 0.0])), life=pr.life.at[0].set(5.0)))
+    assert float(p.skills.projectile_speed[BOSS, 0]) == 20.0
+    _, s2, _, done, info = STEP(KEY, s, acts(CAST_1, NOOP, NOOP), p)
+    assert bool(done) and int(info["result"]) == 1
+    assert bool(s2.projectiles.live[0])
+    np.testing.assert_allclose(np.asarray(s2.projectiles.pos[0]), [-5.0 - 20.0 * 0.02, 12.0], rtol=1e-6)
+    np.testing.assert_allclose(float(s2.projectiles.life[0]), 5.0 - 0.02, rtol=1e-6)
+    _, s3, _, _, _ = STEP(jax.random.key(9), s2, acts(CAST_1), p)  # and through a whole ended decision
+    assert_trees_equal(s3, s2)
 
 
 def test_draw_is_a_truncation_at_the_decision_limit(ref_params):

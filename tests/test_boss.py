@@ -216,7 +216,7 @@ def test_area_hits_at_most_hit_count_units_nearest_first(hit_count, expected):
 
 @jax.jit
 def _move(state, params):
-    skills, _ = combat.split_table(combat.effect_table(params), 3)
+    skills, _ = combat.effect_sources(params)
     feats = skills[state.projectiles.owner * 3 + state.projectiles.slot]
     return projectiles.move_projectiles(state, params, feats, 0.1)
 

@@ -340,18 +340,31 @@ def touchable(feats: jnp.ndarray, params: Params, alive: jnp.ndarray) -> jnp.nda
     return ((feats[:, F_ENEMY, None] > 0) & ~same | (feats[:, F_ALLY, None] > 0) & same) & alive[None]
 
 
-def unit_columns(state: State, params: Params) -> dict[str, jnp.ndarray]:
+def unit_columns(state: State, params: Params, facing: jnp.ndarray | None = None) -> dict[str, jnp.ndarray]:
     """Per-unit columns ``float32[U, ...]`` a hit reads from the unit it touches (position, rear
     direction, evasion, agility, parry, armour factor, team), computed once into memory: tiny, and
-    read by every hit event (cos and sin are dear)."""
+    read by every hit event (cos and sin are dear).
+
+    ``facing``: ``fire``'s ``float32[U, 2, ...]`` (cos and sin of the headings before the boss turned
+    to fire), if at hand: only the boss's are then computed again, the players' being the same.
+    """
     st = params.stats
-    return computed(lambda: {
-        "x": state.pos[:, 0], "y": state.pos[:, 1],
-        "back_x": -jnp.cos(state.heading), "back_y": -jnp.sin(state.heading),
-        "evasion": st.evasion, "agility": st.agility, "parry": st.parry,
-        "armor": (1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0),
-        "team": params.team.astype(jnp.float32),
-    })
+
+    def columns():
+        if facing is None:
+            cos_h, sin_h = jnp.cos(state.heading), jnp.sin(state.heading)
+        else:
+            boss = state.heading[-1:]
+            cos_h = jnp.concatenate([facing[:-1, 0], jnp.cos(boss)])
+            sin_h = jnp.concatenate([facing[:-1, 1], jnp.sin(boss)])
+        return {
+            "x": state.pos[:, 0], "y": state.pos[:, 1], "back_x": -cos_h, "back_y": -sin_h,
+            "evasion": st.evasion, "agility": st.agility, "parry": st.parry,
+            "armor": (1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0),
+            "team": params.team.astype(jnp.float32),
+        }
+
+    return computed(columns)
 
 
 def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, first=None):

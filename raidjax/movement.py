@@ -12,7 +12,7 @@ import math
 import jax.numpy as jnp
 
 from raidjax import heuristic
-from raidjax.lanes import any_, argmin, if_any, pick
+from raidjax.lanes import any_, argmin, computed, if_any, pick
 from raidjax.types import (
     ACTION_HEURISTIC,
     BACKWARD,
@@ -76,7 +76,7 @@ def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) 
     def learner_moves():  # the velocity-impulse model; rotation first (a decision rotates or translates)
         turn = jnp.where(actions == ROTATE_LEFT, 1.0, jnp.where(actions == ROTATE_RIGHT, -1.0, 0.0))
         new_heading = heading + turn * TURN_RATE * dt
-        fwd = heading_vec(new_heading)
+        fwd = computed(lambda: heading_vec(new_heading))  # once: both directions below read it
         left = jnp.stack([-fwd[:, 1], fwd[:, 0]], axis=1)
         thrust = (
             (actions == FORWARD)[:, None] * fwd

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 
 from raidjax import collide
 from raidjax.combat import EPS, F_HITS, F_RADIUS, F_SPEED, group_sums, spawn, touchable
-from raidjax.lanes import any_, argmin, batch_level, computed, one_hot, pick, total
+from raidjax.lanes import any_, argmin, batch_level, computed, materialize, one_hot, pick, total
 from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Params, Projectiles, State
 
 POOL_BLOCK = 4  # pool slots per block of work
@@ -177,7 +177,9 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
 
         def run(carry):
             pool, total_sums = carry
-            new, sums = block(jax.tree.map(cut, pool), cut(got), cut(src), start)
+            # The block's slots into memory of their own: the pool's buffers are then written in
+            # place with nothing left to read them, and need no copy.
+            new, sums = block(materialize(jax.tree.map(cut, pool)), cut(got), cut(src), start)
             pool = jax.tree.map(lambda x, y: jax.lax.dynamic_update_slice_in_dim(x, y, start, 0), pool, new)
             # Whole points: the sums are exact in any order.
             return pool, tuple(a + b for a, b in zip(total_sums, sums, strict=True))

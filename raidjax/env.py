@@ -183,9 +183,8 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
     unit_cols = combat.unit_columns(state, params, spawns[3])  # the pool moves nobody: they serve every hit
     m = state.projectiles.live.shape[0]
     with jax.named_scope("projectiles"):
-        got, *rest = spawns
-        state, pool_sums = projectiles.fly(seeds, state, params, sources[0], (got & running, *rest), n_ticks,
-                                           unit_cols, m + skills[0].shape[0] + basic[0].shape[0], running)
+        state, pool_sums = projectiles.fly(seeds, state, params, sources[0], spawns, n_ticks, unit_cols,
+                                           m + skills[0].shape[0] + basic[0].shape[0], running)
     with jax.named_scope("hits"):
         state, basic_hits = combat.basic_attacks(state, params, dt)
         groups = ((*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))

@@ -141,7 +141,8 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
         n_ticks: ticks in the sub-step (static).
         unit_cols: ``combat.unit_columns(state, params)``.
         n_events: ``E``, the sub-step's hit events (the pool's are events ``0..M-1``).
-        running: ``bool[...]``; where false nothing flies (with no spawns, the pool is unchanged).
+        running: ``bool[...]``; where false nothing spawns and nothing flies: the pool comes out
+            unchanged to the bit (an ended game's).
 
     Returns:
         ``(state, sums)``: the state with the pool moved, and ``combat.group_sums`` of the pool's
@@ -154,6 +155,7 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
     n_blocks = pool_blocks(m)
     size = m // n_blocks
     got, src, packed, facing = spawns
+    got = got & running
 
     def block(pb: Projectiles, got_b, src_b, start):
         pb, flight = spawn(pb, (got_b, src_b, packed, facing), n_ticks)

@@ -295,14 +295,16 @@ def effect_sources(params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
         base = jnp.floor(coef * power + 1e-3) * scale  # GAME.md §6: int(coefficient x power)
         heal = jnp.floor(coef * (st.spell_power * int_scale)[:, None] + 1e-3)
         cols = [base, heal, *(x[:, None] for x in per_unit), *per_source]
-        return jnp.stack([jnp.broadcast_to(c, jnp.broadcast_shapes(*(x.shape for x in cols))) for c in cols], axis=2)
+        shape = jnp.broadcast_shapes(*(c.shape for c in cols))
+        return jnp.stack([jnp.broadcast_to(c, shape) for c in cols], axis=2)
 
     as_f32 = lambda x: x.astype(jnp.float32)  # noqa: E731
     skills = rows(sk.hit_type == HIT_ATTACK, sk.coefficient,
                   [as_f32(sk.affect_enemy), as_f32(sk.affect_ally), sk.projectile_speed, sk.projectile_radius,
                    as_f32(sk.hit_count)])
     one = jnp.ones_like(st.attack_power)[:, None]  # [U, 1, ...]: one basic attack per unit
-    basic = rows(one > 0, one, [one, 0.0 * one, 0.0 * one, 0.0 * one, one])
+    zero = jnp.zeros_like(one)
+    basic = rows(one > 0, one, [one, zero, zero, zero, one])  # hits enemies, no ally, no flight, one unit
     return skills.reshape((u_n * s_n,) + skills.shape[2:]), basic[:, 0]
 
 

@@ -33,12 +33,12 @@ def pool_blocks(m: int) -> int:
     return 1
 
 
-def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: jnp.ndarray, unit_cols=None):
+def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: jnp.ndarray, unit_cols):
     """Advance the pool one sub-step with swept collision; slot m flies ``flight[m]`` seconds
     (``combat.spawn``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
     hits before the next). ``feats``: the pool's source features, ``float32[M, 13, ...]``;
-    ``unit_cols``: ``combat.unit_columns(state, params)`` if already computed (its rear directions
-    give the units' headings' cosines and sines, exactly).
+    ``unit_cols``: ``combat.unit_columns(state, params)`` (its rear directions give the units'
+    headings' cosines and sines, exactly).
 
     Returns ``(state, hits, from_pos: float32[M, 2, ...])`` where ``from_pos`` is the projectile's
     position before the move (the direction a hit comes from) and ``hits`` is ``bool[M, U, ...]``, or
@@ -56,10 +56,7 @@ def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: j
     px, py = p.pos[:, 0], p.pos[:, 1]
     ux, uy = state.pos[:, 0], state.pos[:, 1]
     t_oh = one_hot(p.target, u_n, axis=1)
-    if unit_cols is None:
-        cos_h, sin_h = computed(lambda: (jnp.cos(state.heading), jnp.sin(state.heading)))  # [U, ...], read per pair
-    else:  # negation is exact
-        cos_h, sin_h = -unit_cols["back_x"], -unit_cols["back_y"]
+    cos_h, sin_h = -unit_cols["back_x"], -unit_cols["back_y"]  # [U, ...]; negation is exact
 
     # Homing: straight at the target's current position; hits only its target, once within reach
     # at the end of its move (it flies at the body's centre, so it cannot pass through it).

@@ -218,7 +218,7 @@ def test_area_hits_at_most_hit_count_units_nearest_first(hit_count, expected):
 def _move(state, params):
     skills, _ = combat.effect_sources(params)
     feats = skills[state.projectiles.owner * 3 + state.projectiles.slot]
-    return projectiles.move_projectiles(state, params, feats, 0.1)
+    return projectiles.move_projectiles(state, params, feats, 0.1, combat.unit_columns(state, params))
 
 
 def test_area_hits_each_unit_only_once_while_it_lingers():

@@ -98,8 +98,29 @@ def _where_arenas(mask: jax.Array, a, b):
     return jax.tree.map(lambda x, y: jnp.where(mask.reshape(mask.shape + (1,) * (x.ndim - mask.ndim)), x, y), a, b)
 
 
+def _per_group(fn, key: jax.Array, groups: int):
+    """``fn(key)`` (keys with a leading axis ``n``) for one key, or for ``groups > 0`` keys ``[G]`` each
+    group's ``fn`` concatenated: ``[G * n]``, group ``g``'s keys those ``fn(key[g])`` gives alone."""
+    if not groups:
+        return fn(key)
+    out = jax.vmap(fn)(key)
+    return out.reshape((-1,) + out.shape[2:])
+
+
+def _thirds(fn, key: jax.Array, groups: int) -> list[jax.Array]:
+    """``fn(key)``'s keys (``[3 * n]``) cut in three ``[n]`` (policy, step, next episode); for groups
+    (``groups > 0``, ``key: [G]``) each third holds every group's own third, group after group."""
+    if not groups:
+        keys = fn(key)
+        n = keys.shape[0] // 3
+        return [keys[i * n:(i + 1) * n] for i in range(3)]
+    keys = jax.vmap(fn)(key)  # [G, 3n]
+    n = keys.shape[1] // 3
+    return [keys[:, i * n:(i + 1) * n].reshape((-1,) + keys.shape[2:]) for i in range(3)]
+
+
 def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, games_per_arena: int,
-                fold=None, acc=None):
+                fold=None, acc=None, groups: int = 0):
     """Play ``games_per_arena`` measured games in a row in each of ``n_arenas`` arenas (``batch``:
     params with a leading ``n_arenas`` axis) and return ``(summaries, acc)``: ``episode_summary``
     of every measured game, each leaf ``[n_arenas, games_per_arena, ...]``, in the order played.
@@ -110,13 +131,18 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, ga
     each arena first plays one warm-up game, discarded, and its measured games follow it, as the
     reference build's arenas chain their games. ``fold(acc, state, counted: bool[n_arenas])`` sees
     the state at the start of every decision; ``counted`` marks the arenas playing a measured game.
+
+    With ``groups = G > 0``, ``key`` holds one key per group (``[G]``) and the arenas are ``G``
+    consecutive groups of ``n_arenas // G``: every group draws the keys its own call with its key
+    would draw, so the games are those of ``G`` separate calls (a vmap over groups), in one loop.
     """
     k = games_per_arena
     warm = 1 if batch.config.chains_episodes else 0
     max_t = (warm + k) * batch.config.max_decisions
-    k_reset, k_play = jax.random.split(key)
+    per = n_arenas // max(groups, 1)  # arenas of a group
+    k_reset, k_play = (jax.vmap(jax.random.split, out_axes=1)(key) if groups else jax.random.split(key))
     batch = shard_batch(batch, n_arenas)  # arenas are independent: spread them over every device
-    obs, state = jax.vmap(reset)(jax.random.split(k_reset, n_arenas), batch)
+    obs, state = jax.vmap(reset)(_per_group(lambda k: jax.random.split(k, per), k_reset, groups), batch)
     state = shard_batch(state, n_arenas)
     template = episode_summary(state)
     summaries = jax.tree.map(lambda x: jnp.zeros((n_arenas, k) + x.shape[1:], x.dtype), template)
@@ -127,9 +153,9 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, ga
         t, obs, state, played, summaries, acc = carry
         active = played < warm + k
         acc = fold(acc, state, active & (played >= warm))
-        keys = jax.random.split(jax.random.fold_in(k_play, t), 3 * n_arenas)  # raw or typed keys
-        actions = jax.vmap(policy)(keys[:n_arenas], obs, state, batch)
-        obs, state, _, _, _ = jax.vmap(step)(keys[n_arenas:2 * n_arenas], state, actions, batch)
+        keys = _thirds(lambda k: jax.random.split(jax.random.fold_in(k, t), 3 * per), k_play, groups)
+        actions = jax.vmap(policy)(keys[0], obs, state, batch)
+        obs, state, _, _, _ = jax.vmap(step)(keys[1], state, actions, batch)
         ended = active & (state.result != RUNNING)
         measured = ended & (played >= warm)
         slot = jax.nn.one_hot(played - warm, k, dtype=bool) & measured[:, None]  # [A, k]
@@ -137,7 +163,7 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, ga
         summaries = _where_arenas(slot, summary, summaries)
         played = played + ended
         again = ended & (played < warm + k)
-        obs_next, state_next = jax.vmap(next_episode)(keys[2 * n_arenas:], state, batch)
+        obs_next, state_next = jax.vmap(next_episode)(keys[2], state, batch)
         obs, state = _where_arenas(again, (obs_next, state_next), (obs, state))
         return t + 1, obs, state, played, summaries, acc
 
@@ -162,6 +188,44 @@ def _playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, game
     summaries, _ = _play_games(key, broadcast_params(params, n_games // games_per_arena), bind(policy, weights),
                                n_arenas, games_per_arena)
     return _flatten_games(summaries)
+
+
+def playtest_groups(keys: jax.Array, params: Params, policy: Policy, n_games: int, games_per_arena: int = 1,
+                    weights=None) -> dict[str, jax.Array]:
+    """``G`` playtests in one loop, each of one content with its own key: the results of
+    ``jax.vmap(lambda k, c: playtest(k, c, policy, n_games, weights, games_per_arena))(keys, params)``
+    bit for bit, without a vmapped loop (every arena runs until its own games end; the lanes
+    program runs as in a single playtest).
+
+    Args:
+        keys: ``G`` PRNG keys (typed ``[G]`` or raw ``uint32[G, 2]``).
+        params: ``Params`` with a leading ``G`` axis on every leaf, one content per group.
+        policy, n_games, games_per_arena, weights: as ``playtest``, per group (``weights`` shared).
+
+    Returns:
+        ``playtest``'s dict with leading axes ``[G, n_games]``.
+
+    Raises:
+        ValueError: before anything compiles, as ``playtest``, or ``keys`` without one key per group.
+    """
+    n = validate.whole_number("n_games", n_games, 1)
+    if not isinstance(params, Params) or params.team.ndim != 2:
+        raise validate.fail("params", params, "a raidjax.Params with one leading group axis on every leaf")
+    groups = params.team.shape[0]
+    if getattr(keys, "shape", ())[:1] != (groups,):
+        raise ValueError(f"keys: shape {list(getattr(keys, 'shape', ()))}; allowed: one key per group, [{groups}]")
+    check_args(params, n * groups, policy, weights)
+    k = check_games_per_arena(params, n * groups, games_per_arena)
+    return _playtest_groups(keys, params, policy, n, k, weights)
+
+
+@partial(jax.jit, static_argnames=("policy", "n_games", "games_per_arena"))
+def _playtest_groups(keys, params: Params, policy: Policy, n_games: int, games_per_arena: int, weights):
+    groups = keys.shape[0]
+    per = n_games // games_per_arena
+    batch = jax.tree.map(lambda x: jnp.repeat(x, per, axis=0), sensed_by(params, policy))
+    summaries, _ = _play_games(keys, batch, bind(policy, weights), groups * per, games_per_arena, groups=groups)
+    return jax.tree.map(lambda x: x.reshape((groups, n_games) + x.shape[2:]), summaries)
 
 
 def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weights=None,
@@ -306,4 +370,4 @@ def win_rate(results: dict[str, jax.Array]) -> jax.Array:
     return jnp.mean(outcome == 1)
 
 
-__all__ = ["playtest", "playtest_occupancy", "broadcast_params", "win_rate", "auto_games_per_arena"]
+__all__ = ["playtest", "playtest_groups", "playtest_occupancy", "broadcast_params", "win_rate", "auto_games_per_arena"]

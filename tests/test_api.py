@@ -276,7 +276,7 @@ def test_programs_around_the_game_trace_its_sub_step_once(monkeypatch):
     traced = []
     real = env.substep
     monkeypatch.setattr(env, "substep", lambda *a: traced.append(1) or real(*a))
-    n = 7  # an arena count no other test uses, so the lane program is traced here first
+    n = 19  # an arena count no other test plays (grouped PCG measurements included): traced here first
     p = jax.tree.map(lambda x: jnp.broadcast_to(x, (n,) + x.shape), raidjax.make_params())
     keys = jax.random.split(KEY, n)
     _, s = jax.vmap(raidjax.reset)(keys, p)

@@ -137,6 +137,29 @@ def test_pooled_win_rate_is_mean_of_all_games_of_the_held_skill():
     assert float(st.win_rate) == pytest.approx(float(np.mean(np.concatenate(outcomes))), abs=1e-6)
 
 
+def test_side_by_side_measurements_are_one_playtest_of_each_episode_s_own_games():
+    """Generator episodes vmapped over keys and skills measure in one playtest
+    (``raidjax.playtest_groups``, no vmapped game loop): each episode's games bit for bit
+    as its own measurement plays them. With the game batched too (a content per episode) the vmap
+    runs as it is, with the same games again."""
+    p = pcg.make_pcg_params(n_games=8)
+    keys = jax.random.split(jax.random.key(9), 3)
+    skills = jnp.asarray([(20.0, 0.5, 0.5, 0.6), (5.0, 2.0, 1.0, 1.5), (12.0, 1.0, 0.3, 1.0)])
+    alone = np.stack([np.asarray(pcg.play_outcomes(k, p.game, s, 8)) for k, s in zip(keys, skills, strict=True)])
+    assert 0 < alone.mean() < 1  # wins and losses: the comparison can fail
+    traced = jax.jit(jax.vmap(lambda k, s: pcg.play_outcomes(k, p.game, s, 8))).trace(keys, skills)
+    assert "playtest_groups" in str(traced.jaxpr)
+    np.testing.assert_array_equal(traced.lower().compile()(keys, skills), alone)
+    games = jax.tree.map(lambda x: jnp.stack([x] * 3), p.game)
+    per_game = jax.jit(jax.vmap(lambda k, g, s: pcg.play_outcomes(k, g, s, 8)))(keys, games, skills)
+    np.testing.assert_array_equal(per_game, alone)
+    contents = jax.vmap(lambda s: pcg.env.skill_params(p.game, s))(skills)
+    with pytest.raises(ValueError, match=r"keys: shape \[2\]; allowed: one key per group, \[3\]"):
+        raidjax.playtest_groups(keys[:2], contents, raidjax.policies.heuristic, 8)
+    with pytest.raises(ValueError, match="games_per_arena: value 3 does not divide the 8 games"):
+        raidjax.playtest_groups(keys, contents, raidjax.policies.heuristic, 8, games_per_arena=3)
+
+
 def test_win_rate_is_mean_of_game_outcomes():
     p = pcg.make_pcg_params(n_games=8)
     skill = jnp.asarray((20.0, 0.5, 0.5, 0.6))

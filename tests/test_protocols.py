@@ -208,7 +208,8 @@ def pcg_net_params(hidden):
 def test_strict_episodes_keep_the_last_measurement():
     """Strict: every episode makes exactly max_edits edits although the target 0 is often met
     (2-game measurements of 0 wins); the kept win rate is the generator's own last measurement
-    (eval_games=0), a multiple of 1/2. The non-strict run stops some episodes early."""
+    (eval_games=0), a multiple of 1/2. The non-strict run stops some episodes early, in the same
+    compiled generation (``strict_length`` is data)."""
     game = pcg.base_game().replace(config=raidjax.EnvConfig(max_decisions=60, n_substeps=1))
     strict = pcg.make_pcg_params(target=0.0, n_games=2, max_edits=3, strict_length=True).replace(game=game)
     key = jax.random.PRNGKey(0)
@@ -216,8 +217,10 @@ def test_strict_episodes_keep_the_last_measurement():
     assert (g["edits"] == 3).all()
     np.testing.assert_array_equal(g["win_rate"], g["gen_win_rate"])
     assert np.allclose(g["win_rate"] * 2, np.round(g["win_rate"] * 2))
-    loose = pm.generate(key, pcg.pcg_rd, strict.replace(strict_length=False), targets=(0.0,), episodes=12,
+    compiled = pm._generate._cache_size()
+    loose = pm.generate(key, pcg.pcg_rd, strict.replace(strict_length=np.False_), targets=(0.0,), episodes=12,
                         eval_games=0)
+    assert pm._generate._cache_size() == compiled
     assert (loose["edits"] < 3).any() and (loose["edits"][loose["edits"] < 3] >= 1).all()
     assert loose["reached"][loose["edits"] < 3].all()
 

@@ -78,7 +78,7 @@ def generate_episodes(key: jax.Array, config: PPOConfig, weights, labels: list, 
     """
     # the training env (generate sets the targets)
     p = env_params(config, tester=tester, tester_weights=tester_weights).replace(n_games=gen_games)
-    p = p.replace(strict_length=p.strict_length if strict_length is None else strict_length,
+    p = p.replace(strict_length=p.strict_length if strict_length is None else np.bool_(strict_length),
                   max_edits=p.max_edits if max_edits is None else max_edits)
     policy = method_policy(config.widths, greedy, config.space.size)
     n_seeds = max(s for _, s in labels) + 1

@@ -30,6 +30,7 @@ its own batch of ``n_games`` playtests.
 from __future__ import annotations
 
 import argparse
+import functools
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -37,11 +38,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
+from jax.custom_batching import custom_vmap
 
 from raidjax import policies
 from raidjax.content import REFERENCE_PLAYERS, make_params
 from raidjax.pcg.space import PAPER_SPACE, Space, make_space
-from raidjax.playtest import auto_games_per_arena, check_args, playtest
+from raidjax.playtest import auto_games_per_arena, check_args, playtest, playtest_groups
 from raidjax.types import WIN, Params
 
 N_PARAMS, N_CHOICES = PAPER_SPACE.size, 5
@@ -77,7 +79,8 @@ class PCGParams:
         band: ``float32[]`` early-termination half-width (0.02).
         n_games: playtest games per measurement (static).
         max_edits: edits per episode at most (static).
-        strict_length: never end early (static).
+        strict_length: ``bool[]``, never end early (data: the paper's strict episodes and early-ending
+            ones share a compiled program).
         observe_target: append target and last win rate to the observation (static).
         pool_repeats: an edit that leaves the skill unchanged (all-zero action, or a move
             clipped away) re-measures it and pools the new games with the earlier measurements of
@@ -106,7 +109,7 @@ class PCGParams:
     band: jax.Array
     n_games: int = struct.field(pytree_node=False, default=100)
     max_edits: int = struct.field(pytree_node=False, default=40)
-    strict_length: bool = struct.field(pytree_node=False, default=False)
+    strict_length: jax.Array | bool = False
     observe_target: bool = struct.field(pytree_node=False, default=True)
     pool_repeats: bool = struct.field(pytree_node=False, default=False)
     goal_axis: tuple[int, ...] | None = struct.field(pytree_node=False, default=None)
@@ -221,7 +224,7 @@ def make_pcg_params(
     game = base_game(tuple(players))
     check_args(game, n_games, tester, tester_weights)  # a hashable callable; weights a pytree of arrays
     return PCGParams(game=game, target_low=f(lo), target_high=f(hi), band=f(band), n_games=n_games,
-                     max_edits=max_edits, strict_length=strict_length, observe_target=observe_target,
+                     max_edits=max_edits, strict_length=np.bool_(strict_length), observe_target=observe_target,
                      pool_repeats=pool_repeats, goal_axis=check_axis(goal_axis, space.size), tester=tester,
                      tester_weights=tester_weights, space=space)
 
@@ -236,10 +239,40 @@ def play_outcomes(key: jax.Array, game: Params, skill: jax.Array, n_games: int, 
                   tester_weights: Any = None, space: Space = PAPER_SPACE) -> jax.Array:
     """``tester`` (default PT-HR; with ``tester_weights`` as in ``PCGParams``) plays ``n_games`` games
     with ``skill`` (``float32[K]`` in ``space``); returns ``bool[n_games]`` wins (draws and losses
-    are ``False``)."""
-    results = playtest(key, skill_params(game, skill, space), tester, n_games, weights=tester_weights,
-                       games_per_arena=auto_games_per_arena(n_games))
-    return results["outcome"] == WIN
+    are ``False``).
+
+    Under ``jax.vmap`` over keys and skills (generator episodes run side by side), the batch's
+    playtests run as one (``raidjax.playtest_groups``): the same games bit for bit, but
+    every arena stops with its own games instead of a vmapped loop running the whole batch's
+    longest, and the program traces and compiles as a single playtest does."""
+    return _outcomes(tester, n_games, space)(key, game, skill, tester_weights)
+
+
+@functools.cache
+def _outcomes(tester: Callable, n_games: int, space: Space):
+    """``play_outcomes`` for one ``(tester, n_games, space)``: a function of ``(key, game, skill,
+    weights)`` with a vmap rule (cached, so its programs are traced once per process)."""
+    gpa = auto_games_per_arena(n_games)
+
+    def one(key, game, skill, weights):
+        results = playtest(key, skill_params(game, skill, space), tester, n_games, weights=weights, games_per_arena=gpa)
+        return results["outcome"] == WIN
+
+    outcomes = custom_vmap(one)
+
+    @outcomes.def_vmap
+    def rule(axis_size, in_batched, key, game, skill, weights):
+        k_b, g_b, s_b, w_b = in_batched
+        if any(jax.tree.leaves(g_b)) or any(jax.tree.leaves(w_b)):  # contents or testers per episode: vmap as is
+            axes = [jax.tree.map(lambda b: 0 if b else None, b) for b in in_batched]
+            return jax.vmap(one, in_axes=axes)(key, game, skill, weights), True
+        keys = key if k_b else jnp.broadcast_to(key, (axis_size,) + key.shape)
+        skills = skill if s_b else jnp.broadcast_to(skill, (axis_size,) + skill.shape)
+        contents = jax.vmap(lambda sk: skill_params(game, sk, space))(skills)
+        results = playtest_groups(keys, contents, tester, n_games, gpa, weights)
+        return results["outcome"] == WIN, True
+
+    return outcomes
 
 
 def measure(key: jax.Array, params: PCGParams, skill: jax.Array, n_games: int | None = None) -> jax.Array:
@@ -400,9 +433,7 @@ def advance(state: PCGState, skill: jax.Array, w: jax.Array, params: PCGParams) 
         w = jnp.where(same, (state.win_rate * state.games + w * n) / games, w)
     edits = state.edits + 1
     close = in_band(params, state.target, w)
-    done = edits >= params.max_edits
-    if not params.strict_length:
-        done = done | close
+    done = (edits >= params.max_edits) | (close & ~jnp.asarray(params.strict_length))
     reward = reward_fn(state.target, state.win_rate, w)
     new = state.replace(skill=skill, win_rate=w, edits=edits, done=done, reached=state.reached | close, games=games)
     return new, reward

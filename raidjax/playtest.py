@@ -98,29 +98,13 @@ def _where_arenas(mask: jax.Array, a, b):
     return jax.tree.map(lambda x, y: jnp.where(mask.reshape(mask.shape + (1,) * (x.ndim - mask.ndim)), x, y), a, b)
 
 
-def _per_group(fn, key: jax.Array, groups: int):
-    """``fn(key)`` (keys with a leading axis ``n``) for one key, or for ``groups > 0`` keys ``[G]`` each
-    group's ``fn`` concatenated: ``[G * n]``, group ``g``'s keys those ``fn(key[g])`` gives alone."""
-    if not groups:
-        return fn(key)
-    out = jax.vmap(fn)(key)
-    return out.reshape((-1,) + out.shape[2:])
-
-
-def _thirds(fn, key: jax.Array, groups: int) -> list[jax.Array]:
-    """``fn(key)``'s keys (``[3 * n]``) cut in three ``[n]`` (policy, step, next episode); for groups
-    (``groups > 0``, ``key: [G]``) each third holds every group's own third, group after group."""
-    if not groups:
-        keys = fn(key)
-        n = keys.shape[0] // 3
-        return [keys[i * n:(i + 1) * n] for i in range(3)]
-    keys = jax.vmap(fn)(key)  # [G, 3n]
-    n = keys.shape[1] // 3
-    return [keys[:, i * n:(i + 1) * n].reshape((-1,) + keys.shape[2:]) for i in range(3)]
+def _flat(keys: jax.Array) -> jax.Array:
+    """Keys ``[G, n]`` as ``[G * n]``, group after group (raw keys keep their trailing 2)."""
+    return keys.reshape((-1,) + keys.shape[2:])
 
 
 def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, games_per_arena: int,
-                fold=None, acc=None, groups: int = 0):
+                fold=None, acc=None, grouped: bool = False):
     """Play ``games_per_arena`` measured games in a row in each of ``n_arenas`` arenas (``batch``:
     params with a leading ``n_arenas`` axis) and return ``(summaries, acc)``: ``episode_summary``
     of every measured game, each leaf ``[n_arenas, games_per_arena, ...]``, in the order played.
@@ -132,17 +116,19 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, ga
     reference build's arenas chain their games. ``fold(acc, state, counted: bool[n_arenas])`` sees
     the state at the start of every decision; ``counted`` marks the arenas playing a measured game.
 
-    With ``groups = G > 0``, ``key`` holds one key per group (``[G]``) and the arenas are ``G``
-    consecutive groups of ``n_arenas // G``: every group draws the keys its own call with its key
-    would draw, so the games are those of ``G`` separate calls (a vmap over groups), in one loop.
+    With ``grouped``, ``key`` holds one key per group (``[G]``) and the arenas are ``G`` consecutive
+    groups of ``n_arenas // G``: every group draws the keys its own call with its key would draw, so
+    the games are those of ``G`` separate calls (a vmap over groups), in one loop. A single key is
+    one group.
     """
     k = games_per_arena
     warm = 1 if batch.config.chains_episodes else 0
     max_t = (warm + k) * batch.config.max_decisions
-    per = n_arenas // max(groups, 1)  # arenas of a group
-    k_reset, k_play = (jax.vmap(jax.random.split, out_axes=1)(key) if groups else jax.random.split(key))
+    keys = key if grouped else key[None]  # [G]
+    per = n_arenas // keys.shape[0]  # arenas of a group
+    k_reset, k_play = jax.vmap(jax.random.split, out_axes=1)(keys)
     batch = shard_batch(batch, n_arenas)  # arenas are independent: spread them over every device
-    obs, state = jax.vmap(reset)(_per_group(lambda k: jax.random.split(k, per), k_reset, groups), batch)
+    obs, state = jax.vmap(reset)(_flat(jax.vmap(lambda k: jax.random.split(k, per))(k_reset)), batch)
     state = shard_batch(state, n_arenas)
     template = episode_summary(state)
     summaries = jax.tree.map(lambda x: jnp.zeros((n_arenas, k) + x.shape[1:], x.dtype), template)
@@ -153,7 +139,8 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, ga
         t, obs, state, played, summaries, acc = carry
         active = played < warm + k
         acc = fold(acc, state, active & (played >= warm))
-        keys = _thirds(lambda k: jax.random.split(jax.random.fold_in(k, t), 3 * per), k_play, groups)
+        ks = jax.vmap(lambda k: jax.random.split(jax.random.fold_in(k, t), 3 * per))(k_play)  # raw or typed
+        keys = [_flat(ks[:, i * per:(i + 1) * per]) for i in range(3)]  # policy, step, next episode
         actions = jax.vmap(policy)(keys[0], obs, state, batch)
         obs, state, _, _, _ = jax.vmap(step)(keys[1], state, actions, batch)
         ended = active & (state.result != RUNNING)
@@ -224,7 +211,7 @@ def _playtest_groups(keys, params: Params, policy: Policy, n_games: int, games_p
     groups = keys.shape[0]
     per = n_games // games_per_arena
     batch = jax.tree.map(lambda x: jnp.repeat(x, per, axis=0), sensed_by(params, policy))
-    summaries, _ = _play_games(keys, batch, bind(policy, weights), groups * per, games_per_arena, groups=groups)
+    summaries, _ = _play_games(keys, batch, bind(policy, weights), groups * per, games_per_arena, grouped=True)
     return jax.tree.map(lambda x: x.reshape((groups, n_games) + x.shape[2:]), summaries)
 
 

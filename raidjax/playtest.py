@@ -33,6 +33,14 @@ def bind(policy: Policy, weights):
     return lambda key, obs, state, params: policy(weights, key, obs, state, params)
 
 
+def _typed_key(key) -> jax.Array:
+    """``key`` as a typed PRNG key array: a legacy ``uint32[..., 2]`` key becomes the typed key it
+    stands for (``jax.random.wrap_key_data``: the same draws), a typed key is returned as it is. The
+    playtests take both kinds and compile one program for the two."""
+    key = jnp.asarray(key)
+    return key if jnp.issubdtype(key.dtype, jax.dtypes.prng_key) else jax.random.wrap_key_data(key)
+
+
 def check_args(params: Params, n_games, policy: Policy | None = None, weights=None) -> int:
     """Check the arguments of a playtest on the host, before anything is traced or compiled.
 
@@ -203,7 +211,7 @@ def playtest_groups(keys: jax.Array, params: Params, policy: Policy, n_games: in
         raise ValueError(f"keys: shape {list(getattr(keys, 'shape', ()))}; allowed: one key per group, [{groups}]")
     check_args(params, n * groups, policy, weights)
     k = check_games_per_arena(params, n * groups, games_per_arena)
-    return _playtest_groups(keys, params, policy, n, k, weights)
+    return _playtest_groups(_typed_key(keys), params, policy, n, k, weights)
 
 
 @partial(jax.jit, static_argnames=("policy", "n_games", "games_per_arena"))
@@ -263,7 +271,8 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weigh
             ``games_per_arena`` not a whole number >= 1 dividing every content's games.
     """
     n_games = check_args(params, n_games, policy, weights)
-    return _playtest(key, params, policy, n_games, check_games_per_arena(params, n_games, games_per_arena), weights)
+    k = check_games_per_arena(params, n_games, games_per_arena)
+    return _playtest(_typed_key(key), params, policy, n_games, k, weights)
 
 
 MOST_GAMES_PER_ARENA = 10
@@ -333,7 +342,8 @@ def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: 
     """
     n_games = check_args(params, n_games, policy, weights)
     k = check_games_per_arena(params, n_games, games_per_arena)
-    return _playtest_occupancy(key, params, policy, n_games, validate.whole_number("bins", bins, 1), k, weights)
+    return _playtest_occupancy(_typed_key(key), params, policy, n_games, validate.whole_number("bins", bins, 1), k,
+                               weights)
 
 
 def win_rate(results: dict[str, jax.Array]) -> jax.Array:

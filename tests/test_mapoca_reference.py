@@ -32,18 +32,21 @@ def test_paper_preset_uses_the_reference_senses():
 
 def test_networks_on_reference_observations():
     params = raidjax.make_params(observation="reference", action_space="reference")
-    obs, _ = jax.vmap(raidjax.reset, in_axes=(0, None))(jax.random.split(jax.random.key(0), 2), params)
+    reset = jax.jit(jax.vmap(raidjax.reset, in_axes=(0, None)))
+    obs, _ = reset(jax.random.split(jax.random.key(0), 2), params)
     assert isinstance(obs, ReferenceObservation)
+    # Jitted: run op by op, the networks would compile every operation on its own.
     actor, critic = Actor(16, 2, 2), Critic(16, 2, 2)
-    wa = actor.init(jax.random.key(1), obs)
-    logits = actor.apply(wa, obs)
+    wa = jax.jit(actor.init)(jax.random.key(1), obs)
+    apply = jax.jit(actor.apply)
+    logits = apply(wa, obs)
     assert logits.shape == (2, 3, 8) and np.isfinite(np.asarray(logits)).all()
     # A dead teammate's buffer row is masked out of the attention: its contents cannot matter.
     dead = obs.replace(teammate_mask=obs.teammate_mask.at[:, 0, 0].set(False))
     changed = dead.replace(teammates=dead.teammates.at[:, 0, 0].add(5.0))
-    np.testing.assert_allclose(actor.apply(wa, dead)[:, 0], actor.apply(wa, changed)[:, 0], rtol=1e-5, atol=1e-6)
-    wc = critic.init(jax.random.key(2), obs, jnp.zeros((2, 3), jnp.int32))
-    value, baseline = critic.apply(wc, obs, jnp.full((2, 3), 7, jnp.int32))
+    np.testing.assert_allclose(apply(wa, dead)[:, 0], apply(wa, changed)[:, 0], rtol=1e-5, atol=1e-6)
+    wc = jax.jit(critic.init)(jax.random.key(2), obs, jnp.zeros((2, 3), jnp.int32))
+    value, baseline = jax.jit(critic.apply)(wc, obs, jnp.full((2, 3), 7, jnp.int32))
     assert value.shape == (2,) and baseline.shape == (2, 3)
 
 

@@ -168,12 +168,16 @@ def test_script_and_or_heuristic_choose_their_team_by_data_in_one_program(ref_pa
     assert not np.array_equal(random_team["length"], scripted["length"])  # PT-RD's games are not PT-HR's
 
 
-def test_playtest_accepts_raw_and_typed_keys():
-    """A legacy ``PRNGKey`` (uint32[2]) and a typed key give the same games (same stream)."""
-    typed = jax.device_get(raidjax.playtest(jax.random.key(3), WIN, policies.heuristic, N))
-    raw = jax.device_get(raidjax.playtest(jax.random.PRNGKey(3), WIN, policies.heuristic, N))
-    np.testing.assert_array_equal(typed["outcome"], raw["outcome"])
-    np.testing.assert_array_equal(typed["length"], raw["length"])
+def test_playtest_accepts_raw_and_typed_keys(ref_params, reference_results):
+    """A legacy ``PRNGKey`` (uint32[2]) and a typed key give the same games (same stream), and
+    share one compiled program (the raw key is wrapped before the program)."""
+    from raidjax.playtest import _playtest
+
+    compiled = _playtest._cache_size()
+    raw = jax.device_get(raidjax.playtest(jax.random.PRNGKey(0), ref_params, policies.heuristic, N))
+    for k in reference_results:
+        np.testing.assert_array_equal(raw[k], reference_results[k], err_msg=k)
+    assert _playtest._cache_size() == compiled
 
 
 def test_playtest_occupancy_counts_spawn_cells_of_a_standing_team():

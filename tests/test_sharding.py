@@ -1,11 +1,14 @@
 """Sharding over devices (``raidjax.sharding``): 4 forced CPU devices give the outputs of one.
 
-Each case runs in two fresh subprocesses (the device count is fixed when JAX starts): one with
-``--xla_force_host_platform_device_count=4``, one without, and compares their saved outputs.
+The script runs in a fresh subprocess with ``--xla_force_host_platform_device_count=4`` (the device
+count is fixed when JAX starts) and in the test's own process (one device, the same XLA flags), and
+their saved outputs are compared.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import subprocess
 import sys
@@ -53,6 +56,17 @@ def run(code: str, out: Path, devices: int) -> str:
     return done.stdout.split()
 
 
+def run_here(code: str, out: Path) -> list[str]:
+    """The script in this process (its one device): what it prints, split into words."""
+    argv, sys.argv = sys.argv, ["-c", str(out)]
+    try:
+        with contextlib.redirect_stdout(io.StringIO()) as printed:
+            exec(code, {"__name__": "__main__"})
+    finally:
+        sys.argv = argv
+    return printed.getvalue().split()
+
+
 def same(a: Path, b: Path, float_rtol: float = 0.0):
     """Every saved array equal; with ``float_rtol``, float arrays equal to that relative tolerance."""
     a, b = np.load(a), np.load(b)
@@ -73,6 +87,6 @@ def test_4_devices_give_the_single_device_outputs(tmp_path):
     policy loss is a mean of O(1) terms that cancels to about 1e-4, so its float32 rounding shows
     at about 1e-6 absolute)."""
     assert run(SCRIPT, tmp_path / "four", 4) == ["4", "4", "4", "True"]  # 6 games on 4 devices: unsplit
-    assert run(SCRIPT, tmp_path / "one", 1) == ["1", "1", "1", "True"]
+    assert run_here(SCRIPT, tmp_path / "one") == ["1", "1", "1", "True"]
     same(tmp_path / "four_playtest.npz", tmp_path / "one_playtest.npz")
     same(tmp_path / "four_mapoca.npz", tmp_path / "one_mapoca.npz", float_rtol=1e-4)

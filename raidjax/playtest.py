@@ -107,8 +107,8 @@ def _where_arenas(mask: jax.Array, a, b):
 
 
 def _flat(keys: jax.Array) -> jax.Array:
-    """Keys ``[G, n]`` as ``[G * n]``, group after group (raw keys keep their trailing 2)."""
-    return keys.reshape((-1,) + keys.shape[2:])
+    """Typed keys ``[G, n]`` as ``[G * n]``, group after group."""
+    return keys.reshape(-1)
 
 
 def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, games_per_arena: int,
@@ -123,6 +123,7 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, ga
     each arena first plays one warm-up game, discarded, and its measured games follow it, as the
     reference build's arenas chain their games. ``fold(acc, state, counted: bool[n_arenas])`` sees
     the state at the start of every decision; ``counted`` marks the arenas playing a measured game.
+    Keys are typed (the public functions wrap legacy ones, ``_typed_key``).
 
     With ``grouped``, ``key`` holds one key per group (``[G]``) and the arenas are ``G`` consecutive
     groups of ``n_arenas // G``: every group draws the keys its own call with its key would draw, so
@@ -147,7 +148,7 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, ga
         t, obs, state, played, summaries, acc = carry
         active = played < warm + k
         acc = fold(acc, state, active & (played >= warm))
-        ks = jax.vmap(lambda k: jax.random.split(jax.random.fold_in(k, t), 3 * per))(k_play)  # raw or typed
+        ks = jax.vmap(lambda k: jax.random.split(jax.random.fold_in(k, t), 3 * per))(k_play)
         keys = [_flat(ks[:, i * per:(i + 1) * per]) for i in range(3)]  # policy, step, next episode
         actions = jax.vmap(policy)(keys[0], obs, state, batch)
         obs, state, _, _, _ = jax.vmap(step)(keys[1], state, actions, batch)

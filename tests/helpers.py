@@ -40,8 +40,20 @@ PASSIVE_BOSS = {"move_speed": 0.0, "skill1.range": 1.0, "skill2.range": 1.0}
 
 __all__ = [
     "ACTION_HEURISTIC", "BOSS", "CAST_1", "CLEAN1", "DT", "DRAG", "KEY", "NOOP", "P", "PASSIVE_BOSS", "RESET",
-    "STEP", "TICK", "T_ROLL", "acts", "events", "make", "rollout", "run", "scenario", "series",
+    "OPTIMIZED", "STEP", "TICK", "T_ROLL", "acts", "events", "make", "optimized", "rollout", "run", "scenario",
+    "series",
 ]
+
+
+# Programs whose bits a test compares with another program's compile at LLVM level 1 (conftest.py
+# compiles the rest at level 0, which rounds differently from program to program): levels 1 and 2
+# (XLA's default, what users run) give the same bits, the golden games' among them.
+OPTIMIZED = {"xla_backend_optimization_level": 1}
+
+
+def optimized(fn, *args):
+    """``jax.jit(fn)(*args)``, compiled at ``OPTIMIZED`` (``fn`` closes over any static argument)."""
+    return jax.jit(fn).lower(*args).compile(OPTIMIZED)(*args)
 
 
 def suite_opt_level() -> list[str]:

@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import ACTION_HEURISTIC, CAST_1, NOOP, acts, run, scenario
+from helpers import ACTION_HEURISTIC, CAST_1, NOOP, acts, optimized, run, scenario
 
 import raidjax
 from raidjax import lanes
@@ -152,12 +152,13 @@ def assert_equal(a, b):
 def test_vmapped_step_equals_single_steps_bit_for_bit():
     contents, states, actions = _fights()
     keys = jax.random.split(jax.random.key(4), 4)
-    single = [jax.jit(raidjax.step)(keys[i], states[i], actions[i], contents[i]) for i in range(4)]
+    # Programs compared bit for bit compile at helpers.OPTIMIZED (the suite's level 0 rounds apart).
+    single = [optimized(raidjax.step, keys[i], states[i], actions[i], contents[i]) for i in range(4)]
     # The step exercises what it should: the players' only damage is their instant missiles in the
     # second arena and their basic attacks in the fourth (their missiles do none: spell power 0).
     assert float(single[1][4]["damage_dealt"].sum()) > 0
     assert float(single[3][4]["damage_dealt"].sum()) > 0
-    out = jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked(contents))
+    out = optimized(jax.vmap(raidjax.step), keys, stacked(states), actions, stacked(contents))
     for i in range(4):
         mine = jax.tree.map(lambda x, i=i: x[i], out)
         assert_equal(mine[1:], single[i][1:])  # state, reward, done, info: bit for bit
@@ -166,8 +167,8 @@ def test_vmapped_step_equals_single_steps_bit_for_bit():
         for x, y in zip(jax.tree.leaves(mine[0]), jax.tree.leaves(single[i][0]), strict=True):
             np.testing.assert_allclose(np.asarray(x, np.float32), np.asarray(y, np.float32), rtol=0, atol=1e-6)
     # One content shared by every arena (params unbatched: it broadcasts along the lanes).
-    shared = jax.jit(jax.vmap(raidjax.step, (0, 0, 0, None)))(keys, stacked(states), actions, contents[0])
-    per_arena = jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked([contents[0]] * 4))
+    shared = optimized(jax.vmap(raidjax.step, (0, 0, 0, None)), keys, stacked(states), actions, contents[0])
+    per_arena = optimized(jax.vmap(raidjax.step), keys, stacked(states), actions, stacked([contents[0]] * 4))
     assert_equal(shared[1:], per_arena[1:])
 
 
@@ -175,8 +176,8 @@ def test_nested_vmap_equals_the_flat_one():
     contents, states, actions = _fights()
     keys = jax.random.split(jax.random.key(5), 8)
     two = lambda t: jax.tree.map(lambda x: jnp.concatenate([x, x[::-1]]), t)  # noqa: E731
-    flat = jax.jit(jax.vmap(raidjax.step))(keys, two(stacked(states)), two(actions), two(stacked(contents)))
+    flat = optimized(jax.vmap(raidjax.step), keys, two(stacked(states)), two(actions), two(stacked(contents)))
     nest = lambda t: jax.tree.map(lambda x: x.reshape((2, 4) + x.shape[1:]), t)  # noqa: E731
-    nested = jax.jit(jax.vmap(jax.vmap(raidjax.step)))(nest(keys), nest(two(stacked(states))), nest(two(actions)),
-                                                      nest(two(stacked(contents))))
+    nested = optimized(jax.vmap(jax.vmap(raidjax.step)), nest(keys), nest(two(stacked(states))), nest(two(actions)),
+                       nest(two(stacked(contents))))
     assert_equal(jax.tree.map(lambda x: x.reshape((8,) + x.shape[2:]), nested)[1:], flat[1:])

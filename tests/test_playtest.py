@@ -1,7 +1,8 @@
 """Batched playtesting and the scripted policies (GAME.md §9).
 
-Three compilations of ``playtest`` (unbatched, per-game and per-group params); the per-game and
-per-group contents are chosen so that every game's outcome is certain:
+Few compilations of ``playtest`` (each costs seconds): the reference games chained two per arena,
+per-game params, per-group params chained four per arena. The per-game and per-group contents are
+chosen so that every game's outcome is certain:
 WIN: the boss has 1 HP and does no damage; LOSS: players have 1 HP and do no damage;
 DRAW: nobody can hurt anybody (ends at ``max_decisions``).
 """
@@ -12,13 +13,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import ACTION_HEURISTIC, RESET
+from helpers import ACTION_HEURISTIC, RESET, optimized
 
 import raidjax
 from raidjax import policies
 from raidjax.types import HALF_ARENA, EnvConfig
 
 N = 4
+GPA = 2  # the reference games: two measured games per arena, after each arena's warm-up game
+GAMES = {"n_games": N, "games_per_arena": GPA}
 SHORT = EnvConfig(max_decisions=200)
 HARMLESS_BOSS = {"skill1.coefficient": 0.0, "skill2.coefficient": 0.0}
 WIN = raidjax.make_params(config=SHORT, boss_overrides={"max_hp": 1, **HARMLESS_BOSS})
@@ -32,10 +35,19 @@ def stack(*trees):
 
 @pytest.fixture(scope="module")
 def reference_results(ref_params):
-    return jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, policies.heuristic, N))
+    return jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, policies.heuristic, **GAMES))
+
+
+@pytest.fixture(scope="module")
+def optimized_reference(ref_params):
+    """The fixture's games from a program compiled at ``helpers.OPTIMIZED``, for the tests that compare
+    another program's games with them bit for bit (the suite's level 0 rounds programs apart)."""
+    return jax.device_get(optimized(lambda k: raidjax.playtest(k, ref_params, policies.heuristic, **GAMES),
+                                    jax.random.key(0)))
 
 
 def test_reference_playtest_results_are_consistent(reference_results):
+    """The reference content's games (range 5, PT-HR), chained as the reference's arenas play them."""
     r = reference_results
     assert set(r) == {"outcome", "length", "damage", "back_attacks", "deaths", "alive", "dropped", "boss_hp"}
     assert r["outcome"].shape == (N,) and r["damage"].shape == (N, 3) and r["alive"].shape == (N, 3)
@@ -60,7 +72,7 @@ def test_win_rate_is_mean_of_outcomes(reference_results):
 
 
 def test_playtest_is_deterministic_per_key(ref_params, reference_results):
-    again = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, policies.heuristic, N))
+    again = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, policies.heuristic, **GAMES))
     for k in again:
         np.testing.assert_array_equal(again[k], reference_results[k])
 
@@ -73,32 +85,16 @@ def test_per_game_params():
     assert r["boss_hp"][2] == 1000.0 and r["deaths"][2] == 0
 
 
-def test_per_group_params():
-    r = jax.device_get(raidjax.playtest(jax.random.key(2), stack(WIN, LOSS), policies.heuristic, N))
-    assert r["outcome"].tolist() == [1, 1, 2, 2]  # game g uses content g // (N / G)
-
-
-def test_chained_arenas_play_their_own_content_in_a_row():
-    """Two arenas of 4 games each (``games_per_arena=4``): games 0-3 are arena 0's (the WIN content),
-    games 4-7 arena 1's (LOSS), every one recorded as it ended."""
-    r = jax.device_get(raidjax.playtest(jax.random.key(2), stack(WIN, LOSS), policies.heuristic, 8, games_per_arena=4))
-    assert r["outcome"].tolist() == [1] * 4 + [2] * 4
-    assert (r["length"] > 0).all() and (r["length"] < 200).all()
+def test_per_group_params_chained_in_their_arenas():
+    """Three contents of four games each, four games per arena (``games_per_arena=4``): game ``g``
+    uses content ``g // 4`` and arena ``g // 4`` plays it four times in a row, every game recorded as
+    it ended; a draw content makes each of its games run to ``max_decisions`` (a game is recorded
+    only once it ended, and the next starts afresh)."""
+    r = jax.device_get(raidjax.playtest(jax.random.key(2), stack(WIN, LOSS, DRAW), policies.heuristic, 12,
+                                        games_per_arena=4))
+    assert r["outcome"].tolist() == [1] * 4 + [2] * 4 + [3] * 4
+    assert (r["length"][:8] > 0).all() and (r["length"][:8] < 200).all() and r["length"][8:].tolist() == [200] * 4
     np.testing.assert_array_equal(r["deaths"], 3 - r["alive"].sum(-1))
-
-
-def test_chained_draws_each_last_the_whole_episode():
-    """One arena plays all four games; a draw content makes every one run to ``max_decisions``,
-    so a game is recorded only once it ended and the next starts afresh."""
-    r = jax.device_get(raidjax.playtest(jax.random.key(3), DRAW, policies.noop, 4, games_per_arena=4))
-    assert r["outcome"].tolist() == [3] * 4 and r["length"].tolist() == [200] * 4
-
-
-def test_chained_reference_games_match_single_games_in_distribution(ref_params):
-    """The reference content's games (range 5, PT-HR): the same invariants chained as one per arena."""
-    r = jax.device_get(raidjax.playtest(jax.random.key(4), ref_params, policies.heuristic, 16, games_per_arena=8))
-    assert set(r["outcome"].tolist()) <= {1, 2} and (r["dropped"] == 0).all()
-    np.testing.assert_array_equal(r["outcome"] == 2, r["deaths"] == 3)
 
 
 @pytest.mark.parametrize("k, why", [(0, "whole number >= 1"), (3, "does not divide the 4 games"),
@@ -141,7 +137,7 @@ def test_heuristic_and_noop_policies(ref_params):
     assert policies.noop(jax.random.key(0), obs, s, ref_params).tolist() == [0, 0, 0]
 
 
-def test_script_and_or_heuristic_choose_their_team_by_data_in_one_program(ref_params, reference_results):
+def test_script_and_or_heuristic_choose_their_team_by_data_in_one_program(ref_params, optimized_reference):
     """``policies.script`` (index 0: PT-HR, 1: PT-RD) and ``policies.OrHeuristic`` (a policy with
     weights, or PT-HR) choose by a traced argument: decision by decision they return the chosen
     team's actions, and ``OrHeuristic(script)`` plays the fixture's PT-HR games game for game when
@@ -158,14 +154,17 @@ def test_script_and_or_heuristic_choose_their_team_by_data_in_one_program(ref_pa
         np.testing.assert_array_equal(both(both.weights(jnp.int32(1), False), key, obs, s, ref_params), rd)
         np.testing.assert_array_equal(both(both.weights(jnp.int32(1), True), key, obs, s, ref_params), hr)
     before = _playtest._cache_size()
-    scripted = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, both, N,
+    scripted = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, both, **GAMES,
                                                weights=both.weights(jnp.int32(1), True)))
-    for name in scripted:
-        np.testing.assert_array_equal(scripted[name], reference_results[name], err_msg=name)
-    random_team = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, both, N,
+    random_team = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, both, **GAMES,
                                                   weights=both.weights(jnp.int32(1), False)))
     assert _playtest._cache_size() == before + 1
     assert not np.array_equal(random_team["length"], scripted["length"])  # PT-RD's games are not PT-HR's
+    scripted = jax.device_get(optimized(lambda k, w: raidjax.playtest(k, ref_params, both, **GAMES,
+                                                                      weights=w),
+                                        jax.random.key(0), both.weights(jnp.int32(1), True)))
+    for name in scripted:
+        np.testing.assert_array_equal(scripted[name], optimized_reference[name], err_msg=name)
 
 
 def test_playtest_accepts_raw_and_typed_keys(ref_params, reference_results):
@@ -174,7 +173,7 @@ def test_playtest_accepts_raw_and_typed_keys(ref_params, reference_results):
     from raidjax.playtest import _playtest
 
     compiled = _playtest._cache_size()
-    raw = jax.device_get(raidjax.playtest(jax.random.PRNGKey(0), ref_params, policies.heuristic, N))
+    raw = jax.device_get(raidjax.playtest(jax.random.PRNGKey(0), ref_params, policies.heuristic, **GAMES))
     for k in reference_results:
         np.testing.assert_array_equal(raw[k], reference_results[k], err_msg=k)
     assert _playtest._cache_size() == compiled
@@ -203,16 +202,19 @@ def switched(weights, key, obs, state, params):
     return jnp.where(weights["on"], policies.heuristic(key, obs, state, params), policies.noop(key, obs, state, params))
 
 
-def test_policy_with_weights_plays_as_bound_and_compiles_once(ref_params, reference_results):
+def test_policy_with_weights_plays_as_bound_and_compiles_once(ref_params, optimized_reference):
     from raidjax.playtest import _playtest
 
     before = _playtest._cache_size()
-    on = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, switched, N, weights={"on": jnp.bool_(True)}))
-    for name in on:  # the fixture's plain PT-HR games, game for game
-        np.testing.assert_array_equal(on[name], reference_results[name], err_msg=name)
-    off = jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, switched, N, weights={"on": jnp.bool_(False)}))
+    on, off = (jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, switched, weights={"on": jnp.bool_(b)},
+                                               **GAMES)) for b in (True, False))
     assert (off["damage"] == 0).all() and (off["outcome"] != 1).all()  # a team standing still hurts nobody
+    assert (on["damage"] > 0).any()
     assert _playtest._cache_size() == before + 1  # the second weights reused the program
+    on = jax.device_get(optimized(lambda k, w: raidjax.playtest(k, ref_params, switched, weights=w, **GAMES),
+                                  jax.random.key(0), {"on": jnp.bool_(True)}))
+    for name in on:  # the fixture's plain PT-HR games, game for game
+        np.testing.assert_array_equal(on[name], optimized_reference[name], err_msg=name)
     # record_episode with weights equals the bound policy too.
     key = jax.random.key(3)
     trace_w, _ = raidjax.logs.record_episode(key, LOSS, switched, 12, weights={"on": jnp.bool_(True)})

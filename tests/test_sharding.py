@@ -29,8 +29,10 @@ from trainers.config import load_config
 from trainers.mapoca import make_trainer
 cfg = raidjax.EnvConfig.from_rules("reference", max_decisions=300)
 p = raidjax.make_params(skill_range=13.0, config=cfg)
-r = raidjax.playtest(jax.random.key(0), p, raidjax.policies.heuristic, 64)
-occ = raidjax.playtest_occupancy(jax.random.key(0), p, raidjax.policies.heuristic, 64)
+opt = {"xla_backend_optimization_level": 1}  # compared bit for bit: optimised programs (helpers.OPTIMIZED)
+key = jax.random.key(0)
+r = jax.jit(lambda k: raidjax.playtest(k, p, raidjax.policies.heuristic, 64)).lower(key).compile(opt)(key)
+occ = jax.jit(lambda k: raidjax.playtest_occupancy(k, p, raidjax.policies.heuristic, 64)).lower(key).compile(opt)(key)
 tcfg = load_config("cpu", n_arenas=4, n_steps=4, n_minibatches=2, update_epochs=1, hidden=8, layers=1, heads=2,
                    updates_per_chunk=2, total_steps=32)
 trainer = make_trainer(tcfg)

@@ -30,6 +30,7 @@ import jax
 import jax.extend.core as jex_core
 import jax.numpy as jnp
 from jax.custom_batching import custom_vmap
+from jax.interpreters import batching, mlir
 
 
 def pick(x: jax.Array, idx: jax.Array) -> jax.Array:
@@ -75,7 +76,7 @@ def first_true(x: jax.Array) -> jax.Array:
     return idx
 
 
-def batched(fn, full: tuple[int, ...] = ()):
+def batched(fn, full: tuple[int, ...] = (), out_like=None):
     """``fn`` (a lane function of pytrees) with a ``vmap`` rule that puts the arena axis last.
 
     ``fn(*args)`` must work on lane arrays with any trailing lanes and return lane arrays.
@@ -84,33 +85,71 @@ def batched(fn, full: tuple[int, ...] = ()):
     positions ``full`` (arguments whose shape the outputs keep, such as a carried state), is
     broadcast to the batch. ``fn`` runs once on the lanes and every output's axis moves back to the
     front. Nested ``vmap``s batch the rule's program as any other (the arena axis stays innermost).
+
+    ``out_like(*args)``, if given, returns arrays or ``jax.ShapeDtypeStruct``s with the shapes and
+    dtypes of ``fn(*args)`` without running ``fn``: then ``fn`` is traced for one arena only where
+    it runs unbatched, not at every call (the default, ``jax.eval_shape``, traces it).
     """
 
     # Traced through ``jax.jit``: JAX keeps the traced program per argument shapes, so every later
     # program of the process that runs ``fn`` on the same shapes reuses it instead of tracing the
-    # whole sub-step again (``custom_vmap`` traces the unbatched ``fn`` at every call, the rule
-    # traces the lane version); XLA inlines the call, so the compiled program is the same.
+    # whole sub-step again; XLA inlines the call, so the compiled program is the same.
     traced = jax.jit(fn)
+    out_like = out_like or (lambda *args: jax.eval_shape(traced, *args))
 
-    @custom_vmap
     def wrapped(*args):
-        return traced(*args)
-
-    @wrapped.def_vmap
-    def rule(axis_size, in_batched, *args):
-        if jax.default_backend() != "cpu":  # measured: the lanes pay on XLA:CPU only (see below)
-            axes = jax.tree.map(lambda b: 0 if b else None, tuple(in_batched))
-            out = jax.vmap(traced, in_axes=axes)(*args)
-            return out, jax.tree.map(lambda _: True, out)
-        def to_lanes(x, is_batched, width):
-            return jnp.moveaxis(x, 0, -1) if is_batched else jnp.broadcast_to(x[..., None], x.shape + (width,))
-
-        lanes = tuple(jax.tree.map(functools.partial(to_lanes, width=axis_size if i in full else 1), a, b)
-                      for i, (a, b) in enumerate(zip(args, in_batched, strict=True)))
-        out = traced(*lanes)
-        return jax.tree.map(lambda x: jnp.moveaxis(x, -1, 0), out), jax.tree.map(lambda _: True, out)
+        flat, in_tree = jax.tree.flatten(args)
+        out_flat, out_tree = jax.tree.flatten(out_like(*args))
+        avals = tuple(jax.typeof(x) if isinstance(x, jax.Array)
+                      else jax.core.ShapedArray(x.shape, x.dtype, weak_type=getattr(x, "weak_type", False))
+                      for x in out_flat)
+        out = _lane_call.bind(*flat, call=_Call(traced, in_tree, out_tree, avals, tuple(full)))
+        return jax.tree.unflatten(out_tree, out)
 
     return functools.wraps(fn)(wrapped)
+
+
+class _Call(tuple):
+    """The static parameters of one ``batched`` call: the jitted lane function, the argument and
+    output trees, the output avals and ``full`` (hashable, as a primitive's parameters must be)."""
+
+    def __new__(cls, traced, in_tree, out_tree, avals, full):
+        return super().__new__(cls, (traced, in_tree, out_tree, avals, full))
+
+
+def _one_arena(*flat, call: _Call):
+    traced, in_tree, *_ = call
+    return jax.tree.leaves(traced(*jax.tree.unflatten(in_tree, flat)))
+
+
+def _lanes_rule(flat, dims, *, call: _Call):
+    traced, in_tree, out_tree, _, full = call
+    size = next(x.shape[d] for x, d in zip(flat, dims, strict=True) if d is not None)
+    is_batched = [d is not None for d in dims]  # None: not batched
+    flat = [jnp.moveaxis(x, d, 0) if b else x for x, d, b in zip(flat, dims, is_batched, strict=True)]
+    args, in_batched = jax.tree.unflatten(in_tree, flat), jax.tree.unflatten(in_tree, is_batched)
+    if jax.default_backend() != "cpu":  # measured: the lanes pay on XLA:CPU only (see below)
+        axes = jax.tree.map(lambda b: 0 if b else None, tuple(in_batched))
+        out = jax.vmap(traced, in_axes=axes)(*args)
+        return jax.tree.leaves(out), [0] * out_tree.num_leaves
+
+    def to_lanes(x, b, width):
+        return jnp.moveaxis(x, 0, -1) if b else jnp.broadcast_to(x[..., None], x.shape + (width,))
+
+    lanes = tuple(jax.tree.map(functools.partial(to_lanes, width=size if i in full else 1), a, b)
+                  for i, (a, b) in enumerate(zip(args, in_batched, strict=True)))
+    return [jnp.moveaxis(x, -1, 0) for x in jax.tree.leaves(traced(*lanes))], [0] * out_tree.num_leaves
+
+
+# ``batched``'s primitive rather than ``jax.custom_batching.custom_vmap``, which traces the one-arena
+# function at every call although under ``vmap`` only the lane program runs: a second whole trace of
+# the sub-step in every process (about 1 s on 2 cores). Its output avals come from ``out_like``.
+_lane_call = jex_core.Primitive("lane_call")
+_lane_call.multiple_results = True
+_lane_call.def_impl(_one_arena)
+_lane_call.def_abstract_eval(lambda *_, call: call[3])
+mlir.register_lowering(_lane_call, mlir.lower_fun(_one_arena, multiple_results=True))
+batching.primitive_batchers[_lane_call] = _lanes_rule
 
 
 def fold(op, x: jax.Array, axis: int = 0) -> jax.Array:

@@ -149,6 +149,45 @@ def assert_equal(a, b):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
 
 
+def test_batched_traces_only_the_program_that_runs():
+    """``lanes.batched``: under ``vmap`` the lane function runs once on the lanes (arena axis last,
+    batched at any axis, unbatched arguments as one lane), and with ``out_like`` the one-arena
+    function is traced only where it runs unbatched."""
+    shapes = []
+
+    def f(a, b):  # a lane function: leading axis of size 3, then any lanes
+        shapes.append((a.shape, b.shape))
+        return a + b, a * b
+
+    g = lanes.batched(f, out_like=lambda a, b: (a, a))
+    a, b = jnp.arange(12.0).reshape(4, 3), jnp.arange(3.0) + 10  # four arenas; b unbatched
+    s, m = jax.jit(jax.vmap(g, in_axes=(1, None), out_axes=1))(a.T, b)
+    np.testing.assert_array_equal(s.T, a + b)
+    np.testing.assert_array_equal(m.T, a * b)
+    assert shapes == [((3, 4), (3, 1))]  # lanes last, the shared argument a single lane
+    np.testing.assert_array_equal(jax.jit(g)(a[0], b)[0], a[0] + b)  # one arena: now traced
+    with jax.disable_jit():
+        np.testing.assert_array_equal(g(a[1], b)[1], a[1] * b)
+    assert [sh for sh, _ in shapes[1:]] == [(3,)] * (len(shapes) - 1)
+    default = lanes.batched(lambda a, b: f(a, b))  # no out_like: jax.eval_shape traces one arena too
+    shapes.clear()
+    jax.vmap(default, in_axes=(0, None))(a, b)
+    assert shapes == [((3,), (3,)), ((3, 4), (3, 1))]
+
+
+@pytest.mark.parametrize("rules", ["reference", "clean"])
+def test_advance_like_gives_the_sub_steps_output_types(rules):
+    """``env.advance``'s ``out_like`` (its outputs' avals, weak types included, without tracing it)
+    against the traced ``_advance`` on a reset state."""
+    from raidjax import env
+
+    p = raidjax.make_params(config=raidjax.EnvConfig.from_rules(rules), skill_range=9.0)
+    _, state = raidjax.reset(jax.random.key(0), p)
+    seeds = jnp.zeros((p.config.n_substeps, 2), jnp.uint32)
+    args = (seeds, state, acts(NOOP), p)
+    assert jax.eval_shape(env._advance, *args) == jax.eval_shape(env._advance_like, *args)
+
+
 def test_vmapped_step_equals_single_steps_bit_for_bit():
     contents, states, actions = _fights()
     keys = jax.random.split(jax.random.key(4), 4)

@@ -56,6 +56,13 @@ def optimized(fn, *args):
     return jax.jit(fn).lower(*args).compile(OPTIMIZED)(*args)
 
 
+def xla_flags_at(level: int) -> str:
+    """This process's ``XLA_FLAGS`` with the LLVM optimisation level set to ``level``, for a child
+    process: 1 for children that play thousands of games (a level-0 program runs about 5x slower)."""
+    flags = [f for f in os.environ.get("XLA_FLAGS", "").split() if not f.startswith("--xla_backend_optimization_level")]
+    return " ".join([*flags, f"--xla_backend_optimization_level={level}"])
+
+
 def suite_opt_level() -> list[str]:
     """The suite's XLA optimisation level (``conftest.py``) as a list of ``XLA_FLAGS`` items, for
     child processes that set their own ``XLA_FLAGS``."""

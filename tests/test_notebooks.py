@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import pytest
@@ -18,11 +17,8 @@ NOTEBOOKS = ROOT / "notebooks"
 def execute(name: str, monkeypatch: pytest.MonkeyPatch, **env: str):
     """Run ``notebooks/<name>`` in a fresh ``python3`` kernel from the repository root; return it."""
     monkeypatch.setenv("RAIDJAX_SMOKE", "1")
-    # Smoke sizes run in milliseconds; XLA compilation dominates. The lowest LLVM optimisation
-    # level compiles about 40% faster (the notebooks' numbers are not checked here).
-    # (conftest sets level 1 for the suite; the notebooks' kernels take 0 instead.)
-    flags = [f for f in os.environ.get("XLA_FLAGS", "").split() if not f.startswith("--xla_backend_optimization_level")]
-    monkeypatch.setenv("XLA_FLAGS", " ".join([*flags, "--xla_backend_optimization_level=0"]))
+    # Smoke sizes run in milliseconds and compiling dominates: the kernel inherits the suite's
+    # XLA_FLAGS (conftest.py: LLVM level 0).
     for k, v in env.items():
         monkeypatch.setenv(k, v)
     nb = nbformat.read(NOTEBOOKS / name, as_version=4)

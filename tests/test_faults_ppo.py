@@ -12,8 +12,10 @@ from trainers import ppo_pcgrl_cli
 
 
 def test_ppo_pcgrl_survives_a_chain_of_kills_and_a_truncated_checkpoint(tmp_path, capsys):
-    args = ["--total-steps", "64", "--n-arenas", "2", "--n-games", "2", "--chunk", "1", "--eval-gen-games", "2",
-            "--eval-games", "2", "--no-baselines"]
+    short = tmp_path / "short.json"  # 4-edit generation episodes (40 by default): a short evaluation
+    short.write_text(json.dumps({"max_edits": 4}))
+    args = ["--config", str(short), "--total-steps", "64", "--n-arenas", "2", "--n-games", "2", "--chunk", "1",
+            "--eval-gen-games", "2", "--eval-games", "2", "--no-baselines"]
     ref, out = tmp_path / "uninterrupted", tmp_path / "faulty"
     ppo_pcgrl_cli.main([*args, "--eval-episodes", "1", "--out", str(ref)])  # the evaluation, here only
     last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])

@@ -92,7 +92,7 @@ SCALES = {
     # by the tests; its numbers mean nothing).
     "smoke": Scale(preset="cpu", ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2,
                                           hidden=16, layers=2, n_games=8, max_edits=6),
-                   seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=16, decisions=4,
+                   seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=8, decisions=4,
                    fast_compile=True, bootstrap=50),
     # Sized for a 2-core CPU (the paper protocol: 40-decision episodes,
     # 300-game measurements, greedy PPO): the cpu preset (one model for all targets, target observed;

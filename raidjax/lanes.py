@@ -10,6 +10,8 @@ runs over the arenas, and reductions over units or slots are a few vector operat
 One arena's ``State`` and ``Params`` already are lane arrays with no lanes (a unit's position
 ``pos[u]`` is ``float32[2]``). ``batched`` gives a lane function a ``vmap`` rule that moves the arena
 axis last instead of first, so ``jax.vmap(raidjax.step)`` runs the lane program over the arenas.
+Under it, ``with_vmap_rule`` gives any function a ``vmap`` rule without tracing the function where
+only the rule runs (``raidjax.pcg``'s measurements use it too).
 
 Helpers (shapes: ``x[N, *R, *L]`` with ``L`` the lanes; indices are lane arrays): ``pick`` (gather
 along the leading axis), ``one_hot``, ``argmin``, ``first_true`` and reductions over leading axes as
@@ -85,17 +87,47 @@ def batched(fn, full: tuple[int, ...] = (), out_like=None):
     positions ``full`` (arguments whose shape the outputs keep, such as a carried state), is
     broadcast to the batch. ``fn`` runs once on the lanes and every output's axis moves back to the
     front. Nested ``vmap``s batch the rule's program as any other (the arena axis stays innermost).
-
-    ``out_like(*args)``, if given, returns arrays or ``jax.ShapeDtypeStruct``s with the shapes and
-    dtypes of ``fn(*args)`` without running ``fn``: then ``fn`` is traced for one arena only where
-    it runs unbatched, not at every call (the default, ``jax.eval_shape``, traces it).
+    ``out_like`` as in ``with_vmap_rule``: given, one arena's ``fn`` is traced only where it runs.
     """
 
     # Traced through ``jax.jit``: JAX keeps the traced program per argument shapes, so every later
     # program of the process that runs ``fn`` on the same shapes reuses it instead of tracing the
     # whole sub-step again; XLA inlines the call, so the compiled program is the same.
     traced = jax.jit(fn)
-    out_like = out_like or (lambda *args: jax.eval_shape(traced, *args))
+
+    def rule(axis_size, in_batched, *args):
+        if jax.default_backend() != "cpu":  # measured: the lanes pay on XLA:CPU only (see below)
+            return jax.vmap(traced, in_axes=jax.tree.map(lambda b: 0 if b else None, tuple(in_batched)))(*args)
+
+        def to_lanes(x, is_batched, width):
+            return jnp.moveaxis(x, 0, -1) if is_batched else jnp.broadcast_to(x[..., None], x.shape + (width,))
+
+        lanes = tuple(jax.tree.map(functools.partial(to_lanes, width=axis_size if i in full else 1), a, b)
+                      for i, (a, b) in enumerate(zip(args, in_batched, strict=True)))
+        return jax.tree.map(lambda x: jnp.moveaxis(x, -1, 0), traced(*lanes))
+
+    return functools.wraps(fn)(with_vmap_rule(traced, rule, out_like))
+
+
+def with_vmap_rule(fn, rule, out_like=None):
+    """``fn`` with ``rule`` as its ``vmap`` rule, as ``jax.custom_batching.custom_vmap`` gives, except
+    that ``fn`` is traced only where it runs unbatched: ``custom_vmap`` traces it at every call,
+    although under ``vmap`` only the rule runs (for the sub-step, a second whole trace of the game in
+    every process, about 1 s on 2 cores).
+
+    Args:
+        fn: a function of pytrees of arrays returning a pytree of arrays (hashable: its identity).
+        rule: ``rule(axis_size, in_batched, *args)``, the arguments' batched leaves on axis 0 and
+            ``in_batched`` the arguments' pytrees of ``bool``; returns ``fn``'s outputs with a leading
+            axis of ``axis_size`` on every leaf.
+        out_like: ``out_like(*args)`` returns arrays or ``jax.ShapeDtypeStruct``s with the shapes and
+            dtypes (weak types included) of ``fn(*args)`` without running it; default
+            ``jax.eval_shape(fn, *args)``, which traces ``fn``.
+
+    Returns:
+        A function of the same arguments and outputs as ``fn``.
+    """
+    out_like = out_like or functools.partial(jax.eval_shape, fn)
 
     def wrapped(*args):
         flat, in_tree = jax.tree.flatten(args)
@@ -103,53 +135,33 @@ def batched(fn, full: tuple[int, ...] = (), out_like=None):
         avals = tuple(jax.typeof(x) if isinstance(x, jax.Array)
                       else jax.core.ShapedArray(x.shape, x.dtype, weak_type=getattr(x, "weak_type", False))
                       for x in out_flat)
-        out = _lane_call.bind(*flat, call=_Call(traced, in_tree, out_tree, avals, tuple(full)))
-        return jax.tree.unflatten(out_tree, out)
+        return jax.tree.unflatten(out_tree, _vmap_rule_p.bind(*flat, call=(fn, rule, in_tree, out_tree, avals)))
 
-    return functools.wraps(fn)(wrapped)
-
-
-class _Call(tuple):
-    """The static parameters of one ``batched`` call: the jitted lane function, the argument and
-    output trees, the output avals and ``full`` (hashable, as a primitive's parameters must be)."""
-
-    def __new__(cls, traced, in_tree, out_tree, avals, full):
-        return super().__new__(cls, (traced, in_tree, out_tree, avals, full))
+    return wrapped
 
 
-def _one_arena(*flat, call: _Call):
-    traced, in_tree, *_ = call
-    return jax.tree.leaves(traced(*jax.tree.unflatten(in_tree, flat)))
+def _unbatched(*flat, call):
+    fn, _, in_tree, _, _ = call
+    return jax.tree.leaves(fn(*jax.tree.unflatten(in_tree, flat)))
 
 
-def _lanes_rule(flat, dims, *, call: _Call):
-    traced, in_tree, out_tree, _, full = call
-    size = next(x.shape[d] for x, d in zip(flat, dims, strict=True) if d is not None)
-    is_batched = [d is not None for d in dims]  # None: not batched
-    flat = [jnp.moveaxis(x, d, 0) if b else x for x, d, b in zip(flat, dims, is_batched, strict=True)]
-    args, in_batched = jax.tree.unflatten(in_tree, flat), jax.tree.unflatten(in_tree, is_batched)
-    if jax.default_backend() != "cpu":  # measured: the lanes pay on XLA:CPU only (see below)
-        axes = jax.tree.map(lambda b: 0 if b else None, tuple(in_batched))
-        out = jax.vmap(traced, in_axes=axes)(*args)
-        return jax.tree.leaves(out), [0] * out_tree.num_leaves
-
-    def to_lanes(x, b, width):
-        return jnp.moveaxis(x, 0, -1) if b else jnp.broadcast_to(x[..., None], x.shape + (width,))
-
-    lanes = tuple(jax.tree.map(functools.partial(to_lanes, width=size if i in full else 1), a, b)
-                  for i, (a, b) in enumerate(zip(args, in_batched, strict=True)))
-    return [jnp.moveaxis(x, -1, 0) for x in jax.tree.leaves(traced(*lanes))], [0] * out_tree.num_leaves
+def _batched(flat, dims, *, call):
+    _, rule, in_tree, out_tree, _ = call
+    size = next(x.shape[d] for x, d in zip(flat, dims, strict=True) if d is not None)  # None: not batched
+    flat = [x if d is None else jnp.moveaxis(x, d, 0) for x, d in zip(flat, dims, strict=True)]
+    in_batched = jax.tree.unflatten(in_tree, [d is not None for d in dims])
+    out = jax.tree.leaves(rule(size, tuple(in_batched), *jax.tree.unflatten(in_tree, flat)))
+    return out, [0] * out_tree.num_leaves
 
 
-# ``batched``'s primitive rather than ``jax.custom_batching.custom_vmap``, which traces the one-arena
-# function at every call although under ``vmap`` only the lane program runs: a second whole trace of
-# the sub-step in every process (about 1 s on 2 cores). Its output avals come from ``out_like``.
-_lane_call = jex_core.Primitive("lane_call")
-_lane_call.multiple_results = True
-_lane_call.def_impl(_one_arena)
-_lane_call.def_abstract_eval(lambda *_, call: call[3])
-mlir.register_lowering(_lane_call, mlir.lower_fun(_one_arena, multiple_results=True))
-batching.primitive_batchers[_lane_call] = _lanes_rule
+# ``with_vmap_rule``'s primitive: its output avals are ``call[4]``; run or lowered unbatched it calls
+# ``fn``; under ``vmap`` its batching rule calls ``rule`` instead.
+_vmap_rule_p = jex_core.Primitive("with_vmap_rule")
+_vmap_rule_p.multiple_results = True
+_vmap_rule_p.def_impl(_unbatched)
+_vmap_rule_p.def_abstract_eval(lambda *_, call: call[4])
+mlir.register_lowering(_vmap_rule_p, mlir.lower_fun(_unbatched, multiple_results=True))
+batching.primitive_batchers[_vmap_rule_p] = _batched
 
 
 def fold(op, x: jax.Array, axis: int = 0) -> jax.Array:

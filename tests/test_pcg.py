@@ -137,11 +137,11 @@ def test_pooled_win_rate_is_mean_of_all_games_of_the_held_skill():
     assert float(st.win_rate) == pytest.approx(float(np.mean(np.concatenate(outcomes))), abs=1e-6)
 
 
-def test_side_by_side_measurements_are_one_playtest_of_each_episode_s_own_games():
+def test_side_by_side_measurements_are_one_playtest_of_each_episode_s_own_games(monkeypatch):
     """Generator episodes vmapped over keys and skills measure in one playtest
-    (``raidjax.playtest_groups``, no vmapped game loop): each episode's games bit for bit
-    as its own measurement plays them. With the game batched too (a content per episode) the vmap
-    runs as it is, with the same games again."""
+    (``raidjax.playtest_groups``, no vmapped game loop, no single playtest traced): each episode's
+    games bit for bit as its own measurement plays them. With the game batched too (a content per
+    episode) the vmap runs as it is, with the same games again."""
     p = pcg.make_pcg_params(n_games=8)
     keys = jax.random.split(jax.random.key(9), 3)
     skills = jnp.asarray([(20.0, 0.5, 0.5, 0.6), (5.0, 2.0, 1.0, 1.5), (12.0, 1.0, 0.3, 1.0)])
@@ -149,8 +149,10 @@ def test_side_by_side_measurements_are_one_playtest_of_each_episode_s_own_games(
     one = jax.jit(lambda k, s: pcg.play_outcomes(k, p.game, s, 8)).lower(keys[0], skills[0]).compile(OPTIMIZED)
     alone = np.stack([np.asarray(one(k, s)) for k, s in zip(keys, skills, strict=True)])
     assert 0 < alone.mean() < 1  # wins and losses: the comparison can fail
+    singles = []
+    monkeypatch.setattr(pcg.env, "playtest", lambda *a, **k: singles.append(1) or raidjax.playtest(*a, **k))
     traced = jax.jit(jax.vmap(lambda k, s: pcg.play_outcomes(k, p.game, s, 8))).trace(keys, skills)
-    assert "playtest_groups" in str(traced.jaxpr)
+    assert "playtest_groups" in str(traced.jaxpr) and not singles
     np.testing.assert_array_equal(traced.lower().compile(OPTIMIZED)(keys, skills), alone)
     games = jax.tree.map(lambda x: jnp.stack([x] * 3), p.game)
     per_game = optimized(jax.vmap(lambda k, g, s: pcg.play_outcomes(k, g, s, 8)), keys, games, skills)

@@ -38,9 +38,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
-from jax.custom_batching import custom_vmap
 
-from raidjax import policies
+from raidjax import lanes, policies
 from raidjax.content import REFERENCE_PLAYERS, make_params
 from raidjax.pcg.space import PAPER_SPACE, Space, make_space
 from raidjax.playtest import auto_games_per_arena, check_args, playtest, playtest_groups
@@ -258,21 +257,20 @@ def _outcomes(tester: Callable, n_games: int, space: Space):
         results = playtest(key, skill_params(game, skill, space), tester, n_games, weights=weights, games_per_arena=gpa)
         return results["outcome"] == WIN
 
-    outcomes = custom_vmap(one)
-
-    @outcomes.def_vmap
     def rule(axis_size, in_batched, key, game, skill, weights):
         k_b, g_b, s_b, w_b = in_batched
         if any(jax.tree.leaves(g_b)) or any(jax.tree.leaves(w_b)):  # contents or testers per episode: vmap as is
             axes = [jax.tree.map(lambda b: 0 if b else None, b) for b in in_batched]
-            return jax.vmap(one, in_axes=axes)(key, game, skill, weights), True
+            return jax.vmap(one, in_axes=axes)(key, game, skill, weights)
         keys = key if k_b else jnp.broadcast_to(key, (axis_size,) + key.shape)
         skills = skill if s_b else jnp.broadcast_to(skill, (axis_size,) + skill.shape)
         contents = jax.vmap(lambda sk: skill_params(game, sk, space))(skills)
         results = playtest_groups(keys, contents, tester, n_games, gpa, weights)
-        return results["outcome"] == WIN, True
+        return results["outcome"] == WIN
 
-    return outcomes
+    # One playtest is traced only where it runs unbatched (lanes.with_vmap_rule; custom_vmap would
+    # trace it at every call, and a generator's measurements always run vmapped).
+    return lanes.with_vmap_rule(one, rule, lambda *_: jax.ShapeDtypeStruct((n_games,), jnp.bool_))
 
 
 def measure(key: jax.Array, params: PCGParams, skill: jax.Array, n_games: int | None = None) -> jax.Array:

@@ -96,7 +96,7 @@ class Scale:
 SCALES = {
     # seconds: a tiny network and two updates; checks the plumbing, not the learning (the game
     # keeps its defaults: the smoke scale is about wiring, its numbers mean nothing)
-    "smoke": Scale("cpu", total_steps=256, seeds=1, population=1, games=8, heatmap_games=4,
+    "smoke": Scale("cpu", total_steps=256, seeds=1, population=1, games=2, heatmap_games=2,
                    heatmap_ranges=(5.0, 13.0), checkpoint_chunks=1,
                    trainer=(("n_arenas", 16), ("n_steps", 8), ("n_minibatches", 2), ("update_epochs", 1),
                             ("hidden", 8), ("layers", 1), ("heads", 1), ("updates_per_chunk", 1)),

@@ -113,7 +113,7 @@ def with_vmap_rule(fn, rule, out_like=None):
     """``fn`` with ``rule`` as its ``vmap`` rule, as ``jax.custom_batching.custom_vmap`` gives, except
     that ``fn`` is traced only where it runs unbatched: ``custom_vmap`` traces it at every call,
     although under ``vmap`` only the rule runs (for the sub-step, a second whole trace of the game in
-    every process, about 1 s on 2 cores).
+    a process that plays only vmapped games, about 1 s on 2 cores).
 
     Args:
         fn: a function of pytrees of arrays returning a pytree of arrays (hashable: its identity).

@@ -132,9 +132,7 @@ def with_vmap_rule(fn, rule, out_like=None):
     def wrapped(*args):
         flat, in_tree = jax.tree.flatten(args)
         out_flat, out_tree = jax.tree.flatten(out_like(*args))
-        avals = tuple(jax.typeof(x) if isinstance(x, jax.Array)
-                      else jax.core.ShapedArray(x.shape, x.dtype, weak_type=getattr(x, "weak_type", False))
-                      for x in out_flat)
+        avals = tuple(map(jax.typeof, out_flat))  # arrays and ShapeDtypeStructs alike, weak types kept
         return jax.tree.unflatten(out_tree, _vmap_rule_p.bind(*flat, call=(fn, rule, in_tree, out_tree, avals)))
 
     return wrapped

@@ -4,7 +4,8 @@ file behind; the ``raidjax`` console command (``experiments.cli``) dispatches to
 every ``--help`` shows the defaults. The trainers' run-folder refusals (``--resume``, a finished
 run, ``--total-steps 0``) are tested in ``test_faults_mapoca.py`` / ``test_faults_ppo.py``.
 
-Each case runs ``python -m MODULE`` in a fresh process (about 2 s: importing JAX, nothing compiled)."""
+The mistakes run as ``python -m MODULE`` would, all in one fresh process (``in_one_process.py``);
+the refusals that must not share a process (a missing dependency, Ctrl-C) get their own."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from in_one_process import run_all
 
 ROOT = Path(__file__).resolve().parent.parent
 KNOWN_CLASSES = "['battle_mage', 'druid', 'mage', 'priest', 'ranger', 'warrior']"
@@ -77,36 +79,61 @@ def _run(argv: list[str], cwd: Path, code: str | None = None) -> subprocess.Comp
     return subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=120)
 
 
-@pytest.mark.parametrize("module, argv, message", [m[1:] for m in MISTAKES], ids=[m[0] for m in MISTAKES])
-def test_a_mistake_is_one_line_before_anything_compiles_and_leaves_no_file(tmp_path, module, argv, message):
-    (tmp_path / "run_without_checkpoint").mkdir()
-    (tmp_path / "ppo_run").mkdir()
-    (tmp_path / "ppo_run" / "metrics.csv").write_text("update,env_steps_x,reward\n1,10,0.5\n")
-    (tmp_path / "cwd").mkdir()
-    before = _files(tmp_path)
+CONSOLE = [(["--help"], "help"), ([], "no-command"), (["train", "mapoca", "--help"], "forwarded")]
+
+
+@pytest.fixture(scope="module")
+def ran(tmp_path_factory) -> dict:
+    """Every case of ``MISTAKES`` and ``CONSOLE`` run in one fresh process (``in_one_process``:
+    about 2 s for all instead of 2 s each), each mistake in its own folder prepared as above:
+    ``{id: (folder, its files before, result)}``."""
+    cases, folders = [], {}
+    for case_id, module, argv, _ in MISTAKES:
+        tmp = tmp_path_factory.mktemp(case_id)
+        (tmp / "run_without_checkpoint").mkdir()
+        (tmp / "ppo_run").mkdir()
+        (tmp / "ppo_run" / "metrics.csv").write_text("update,env_steps_x,reward\n1,10,0.5\n")
+        (tmp / "cwd").mkdir()
+        folders[case_id] = (tmp, _files(tmp))
+        cases.append({"target": f"-m {module}", "argv": [a.replace("{tmp}", str(tmp)) for a in argv],
+                      "cwd": str(tmp / "cwd")})
+    console = tmp_path_factory.mktemp("console")
+    for argv, case_id in CONSOLE:
+        folders[case_id] = (console, set())
+        cases.append({"target": "-m experiments.cli", "argv": argv, "cwd": str(console)})
+    env = dict(os.environ)
+    env.pop("RAIDJAX_DEBUG", None)
+    results = run_all(cases, env, timeout=120)
+    return {case_id: (*folders[case_id], r) for case_id, r in zip(folders, results, strict=True)}
+
+
+@pytest.mark.parametrize("module, message", [(m[1], m[3]) for m in MISTAKES], ids=[m[0] for m in MISTAKES])
+def test_a_mistake_is_one_line_before_anything_compiles_and_leaves_no_file(request, ran, module, message):
+    tmp_path, before, p = ran[request.node.callspec.id]
     fill = lambda s: s.replace("{tmp}", str(tmp_path))
-    p = _run([module, *map(fill, argv)], tmp_path / "cwd")
-    err = p.stderr.strip().splitlines()
-    assert p.returncode == 2 and "Traceback" not in p.stderr and p.stdout == "", p.stderr[-3000:]
+    err = p["stderr"].strip().splitlines()
+    assert p["code"] == 2 and "Traceback" not in p["stderr"] and p["stdout"] == "", p["stderr"][-3000:]
+    assert not p["backend"], "a JAX backend started before the mistake was refused"
     if message.startswith("argument"):  # argparse: its usage, then "PROG: error: argument FLAG: ..."
-        assert err[0].startswith("usage: ") and err[-1].startswith(f"python -m {module}: error: "), p.stderr
-        assert fill(message) in err[-1], p.stderr
+        assert err[0].startswith("usage: ") and err[-1].startswith(f"python -m {module}: error: "), p["stderr"]
+        assert fill(message) in err[-1], p["stderr"]
     else:  # run_cli: exactly one line
-        assert len(err) == 1 and err[0].startswith(fill(message)), p.stderr
+        assert len(err) == 1 and err[0].startswith(fill(message)), p["stderr"]
     assert _files(tmp_path) == before  # no output, no hidden temporary file, no replay.gif in the cwd
 
 
-def test_raidjax_console_command_lists_and_dispatches(tmp_path):
-    p = _run(["experiments.cli", "--help"], tmp_path)
-    assert p.returncode == 0 and p.stderr == ""
-    listed = re.findall(r"^  (\S+(?: [\w-]+)?)  +\S", p.stdout, re.M)
+def test_raidjax_console_command_lists_and_dispatches(ran):
+    p = ran["help"][2]
+    assert p["code"] == 0 and p["stderr"] == ""
+    listed = re.findall(r"^  (\S+(?: [\w-]+)?)  +\S", p["stdout"], re.M)
     assert listed == ["calibrate", "render", "train mapoca", "train ppo-pcgrl", "benchmark 1", "benchmark 2", "balance",
                       "plot"]
-    p = _run(["experiments.cli"], tmp_path)  # no command: the help on stderr, exit 2
-    assert p.returncode == 2 and p.stdout == "" and p.stderr.startswith("usage: raidjax COMMAND")
-    p = _run(["experiments.cli", "train", "mapoca", "--help"], tmp_path)  # forwarded to trainers.mapoca_cli
-    assert p.returncode == 0 and p.stdout.startswith("usage: python -m trainers.mapoca_cli"), p.stderr[-3000:]
-    assert "--total-steps" in p.stdout and "(default: 1)" in p.stdout
+    p = ran["no-command"][2]  # no command: the help on stderr, exit 2
+    assert p["code"] == 2 and p["stdout"] == "" and p["stderr"].startswith("usage: raidjax COMMAND")
+    p = ran["forwarded"][2]  # forwarded to trainers.mapoca_cli
+    assert p["code"] == 0 and p["stdout"].startswith("usage: python -m trainers.mapoca_cli"), p["stderr"][-3000:]
+    assert "--total-steps" in p["stdout"] and "(default: 1)" in p["stdout"]
+    assert not list(ran["help"][0].iterdir())
 
 
 def test_a_missing_extra_is_named_in_one_line(tmp_path):

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 from helpers import xla_flags_at
+from in_one_process import run_all
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("raidjax", "trainers", "experiments")
@@ -121,14 +122,21 @@ DOCS = [ROOT / "README.md", ROOT / "CONTRIBUTING.md", *sorted((ROOT / "docs").gl
 DOC_COMMANDS = _commands("".join(p.read_text() for p in DOCS))
 
 
+@pytest.fixture(scope="module")
+def helps() -> dict[str, dict]:
+    """Every documented command's ``--help``, run in one fresh process (``in_one_process``)."""
+    targets = sorted(DOC_COMMANDS)
+    results = run_all([{"target": t, "argv": ["--help"], "cwd": str(ROOT)} for t in targets])
+    return dict(zip(targets, results, strict=True))
+
+
 @pytest.mark.parametrize("module", sorted(DOC_COMMANDS))
-def test_documented_commands_exist_with_their_flags(module):
+def test_documented_commands_exist_with_their_flags(module, helps):
     """Each documented command (module or benchmark script) runs ``--help``, and every flag the docs
-    give it is one of its flags (a dry run that does not train or play)."""
-    out = subprocess.run([sys.executable, *module.split(), "--help"], cwd=ROOT, capture_output=True, text=True,
-                         timeout=300)
-    assert out.returncode == 0, out.stderr[-2000:]
-    missing = sorted(f for f in DOC_COMMANDS[module] if f not in out.stdout)
+    give it is one of its flags (a dry run that does not train or play: no JAX backend starts)."""
+    out = helps[module]
+    assert out["code"] == 0 and not out["backend"], out["stderr"][-2000:]
+    missing = sorted(f for f in DOC_COMMANDS[module] if f not in out["stdout"])
     assert not missing, f"{module} has no flag {missing}"
 
 

@@ -91,8 +91,8 @@ SCALES = {
     # Seconds: a tiny learner, a few games per measurement, 4-decision paper-protocol episodes (used
     # by the tests; its numbers mean nothing).
     "smoke": Scale(preset="cpu", ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2,
-                                          hidden=16, layers=2, n_games=8, max_edits=6),
-                   seeds=1, chunk=1, episodes=2, parts=1, gen_games=8, eval_games=8, decisions=4,
+                                          hidden=16, layers=2, n_games=4, max_edits=6),
+                   seeds=1, chunk=1, episodes=2, parts=1, gen_games=4, eval_games=4, decisions=4,
                    fast_compile=True, bootstrap=50),
     # Sized for a 2-core CPU (the paper protocol: 40-decision episodes,
     # 300-game measurements, greedy PPO): the cpu preset (one model for all targets, target observed;

@@ -73,13 +73,14 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
     assert len(_csv(out / "csv" / "generated.csv")) == E * len(pm.TARGETS) * len(b2.METHODS)
 
     # The paper protocol (default): strict 4-decision smoke episodes (3 measured edits), the kept win
-    # rate is the generator's own 8-game measurement.
+    # rate is the generator's own eval_games-game measurement.
     pr = b2.protocol_of(b2.SCALES["smoke"], "paper")
     assert saved["protocol"] == "paper"
     for g in gens.values():
         assert (g["edits"] == 3).all()
         np.testing.assert_array_equal(g["win_rate"], g["gen_win_rate"])
-        assert np.allclose(g["win_rate"] * 8, np.round(g["win_rate"] * 8))
+        n = b2.SCALES["smoke"].eval_games
+        assert np.allclose(g["win_rate"] * n, np.round(g["win_rate"] * n))
 
     # Controllability CSV == pcg.quality.controllability recomputed from generated.npz, every
     # (method, target) group cut to the smallest group's size (here: E).
@@ -207,10 +208,10 @@ def test_error_vs_diversity_figure_points_legend_and_gaps():
 
 
 def test_the_plan_counts_the_games_a_run_plays():
-    # smoke: 2 updates x 4 arenas x 4 steps x 8 games; paper protocol at 4 decisions: a start
-    # measurement and 3 measured edits of 8 games, for 3 methods x 7 targets x 2 episodes.
+    # smoke: 2 updates x 4 arenas x 4 steps x 4 games; paper protocol at 4 decisions: a start
+    # measurement and 3 measured edits of 4 games, for 3 methods x 7 targets x 2 episodes.
     s = b2.SCALES["smoke"]
-    assert b2.planned_games(s, b2.protocol_of(s, "paper")) == (2 * 4 * 4 * 8, 3 * 7 * 2 * 4 * 8)
+    assert b2.planned_games(s, b2.protocol_of(s, "paper")) == (2 * 4 * 4 * 4, 3 * 7 * 2 * 4 * 4)
     # cpu: 40 updates x 32 x 8 steps x 50 games; 40 measurements of 300 games per episode, 3 episodes.
     c = b2.SCALES["cpu"]
     assert b2.planned_games(c, b2.protocol_of(c, "paper")) == (40 * 256 * 50, 3 * 7 * 3 * 40 * 300)

@@ -3,8 +3,10 @@ SCRIPT ARGS``) would run it, and record what each did. As a script::
 
     python tests/in_one_process.py CASES.json RESULTS.json
 
-CASES is a list of ``{"target": "-m module" | "path/script.py", "argv": [...], "cwd": "..."}``;
-RESULTS gets, per case, ``{"code": exit status, "stdout": ..., "stderr": ..., "backend": bool}``.
+CASES is a list of ``{"target": "-m module" | "path/script.py", "argv": [...], "cwd": "...", "env":
+{...}}`` (``cwd`` and ``env`` optional; ``env`` sets variables before the case, ``None`` unsets one);
+RESULTS gets, per case, ``{"code": exit status, "stdout": ..., "stderr": ..., "backend": bool,
+"xla_flags": XLA_FLAGS after the case}``.
 Output is captured at the file descriptors, so whatever writes to them (a logging handler, C code)
 is caught; ``backend`` says whether a JAX backend had started after the case ran.
 
@@ -59,6 +61,8 @@ def _captured(case: dict) -> dict:
         saved = os.dup(1), os.dup(2)
         os.dup2(out.fileno(), 1), os.dup2(err.fileno(), 2)
         here = os.getcwd()
+        for k, v in case.get("env", {}).items():
+            os.environ.pop(k, None) if v is None else os.environ.__setitem__(k, v)
         try:
             os.chdir(case.get("cwd", ROOT))
             code = _run_one(case["target"], case["argv"])
@@ -72,7 +76,8 @@ def _captured(case: dict) -> dict:
             f.seek(0)
             texts.append(f.read().decode(errors="replace"))
     started = "jax" in sys.modules and sys.modules["jax._src.xla_bridge"].backends_are_initialized()
-    return {"code": code, "stdout": texts[0], "stderr": texts[1], "backend": bool(started)}
+    return {"code": code, "stdout": texts[0], "stderr": texts[1], "backend": bool(started),
+            "xla_flags": os.environ.get("XLA_FLAGS")}
 
 
 def run_all(cases: list[dict], env: dict[str, str] | None = None, timeout: float = 300) -> list[dict]:

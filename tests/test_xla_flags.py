@@ -7,7 +7,7 @@ import os
 import subprocess
 import sys
 
-import pytest
+from in_one_process import run_all
 
 from raidjax import xla_flags
 
@@ -64,11 +64,12 @@ def test_too_late_warns_and_changes_nothing():
     assert run(code) == "False None True"
 
 
-@pytest.mark.parametrize("module", ["raidjax.calibrate", "trainers.mapoca_cli", "experiments.benchmark1"])
-def test_commands_run_with_the_flags(module, tmp_path):
-    """raidjax's command lines opt in before JAX starts (through ``raidjax.io.run_cli``)."""
-    code = (f"import os, sys, {module} as m\nfrom jax._src import xla_bridge\n"
-            "sys.argv = ['x', '--help']\n"
-            "try:\n    m.cli() if hasattr(m, 'cli') else m.main()\nexcept SystemExit:\n    pass\n"
-            "print(os.environ.get('XLA_FLAGS'))")
-    assert run(code).splitlines()[-1] == " ".join(xla_flags.known_flags())
+def test_commands_run_with_the_flags():
+    """raidjax's command lines opt in before JAX starts (through ``raidjax.io.run_cli``): each
+    ``--help`` in one fresh process, ``XLA_FLAGS`` unset before each."""
+    modules = ["raidjax.calibrate", "trainers.mapoca_cli", "experiments.benchmark1"]
+    env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "RAIDJAX_KEEP_XLA_FLAGS")}
+    results = run_all([{"target": f"-m {m}", "argv": ["--help"], "env": {"XLA_FLAGS": None}} for m in modules], env)
+    for m, r in zip(modules, results, strict=True):
+        assert r["code"] == 0 and not r["backend"], (m, r["stderr"][-2000:])
+        assert r["xla_flags"] == " ".join(xla_flags.known_flags()), m

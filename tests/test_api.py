@@ -210,7 +210,7 @@ def test_vmap_over_arenas_with_different_params_matches_single_steps():
     states = [mid_fight(c)[1] for c in contents]
     keys = jax.random.split(jax.random.key(2), 3)
     actions = jnp.stack([HR, acts(CAST_1, NOOP, FORWARD), acts(NOOP)])
-    out = VSTEP(keys, stacked(states), actions, batch_p)
+    out = jax.device_get(VSTEP(keys, stacked(states), actions, batch_p))  # host-side indexing below
     for i in range(3):
         single = STEP(keys[i], states[i], actions[i], contents[i])
         assert_trees_equal(jax.tree.map(lambda x, i=i: x[i], out), single, atol=1e-5)

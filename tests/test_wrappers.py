@@ -27,6 +27,8 @@ class _OnFirstUse:
         self._name = name
 
     def __getattr__(self, attr: str):
+        if attr.startswith("_"):  # pytest's collection looks for its markers (``__test__``, ...) here
+            raise AttributeError(attr)
         return getattr(importlib.import_module(self._name), attr)
 
 

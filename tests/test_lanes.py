@@ -119,6 +119,23 @@ def test_if_any_runs_fn_only_when_some_lane_needs_it():
     assert "conditional" not in batched.lower(jnp.array([False, False]), x).as_text("hlo")
 
 
+def test_batch_level_runs_fast_as_python_under_disable_jit():
+    """Eagerly, ``fast`` runs on the concrete values it closes over (its conditionals take one
+    branch in Python); under ``jit`` both functions are traced into the program."""
+    seen = []
+    x = jnp.arange(3.0)
+
+    def fast():
+        seen.append(isinstance(x + 0.0, jax.core.Tracer))
+        return x * 2.0
+
+    with jax.disable_jit():
+        np.testing.assert_array_equal(lanes.batch_level(fast, lambda: x * 2.0), [0.0, 2.0, 4.0])
+    assert seen == [False]
+    np.testing.assert_array_equal(jax.jit(lambda y: lanes.batch_level(lambda: y * 2.0, lambda: y * 2.0))(x),
+                                  [0.0, 2.0, 4.0])
+
+
 def _fights():
     """Four arenas in mid-fight (live projectiles, casts), different content and actions (PT-HR in
     the first, learners in the others). In the tested decision the second arena's players land

@@ -59,7 +59,11 @@ def episode_summary(state: State) -> dict[str, jax.Array]:
         Dict with ``outcome`` int32 (0 running, 1 win, 2 loss, 3 draw), ``length`` int32
         (decisions), ``damage`` float32[P] (to the boss), ``back_attacks`` int32[P],
         ``deaths`` int32, ``alive`` bool[P], ``dropped`` int32 (projectiles dropped for a full
-        pool), ``boss_hp`` float32.
+        pool), ``boss_hp`` float32; and what the episode hands on to its arena's next one under
+        the reference rules (GAME.md, "Rule sets"): ``boss_recharging`` bool[S] (the boss's
+        cooldowns still running: under ``carry_cooldowns`` each adds a charge in the next episode)
+        and ``in_flight`` int32 (live projectiles: under ``reset_exception`` any keeps the boss
+        where it stands).
     """
     n_players = state.hp.shape[-1] - 1
     alive = state.alive[..., :n_players]
@@ -72,6 +76,8 @@ def episode_summary(state: State) -> dict[str, jax.Array]:
         "alive": alive,
         "dropped": state.dropped,
         "boss_hp": state.hp[..., -1],
+        "boss_recharging": state.recharging[..., -1, :],
+        "in_flight": jnp.sum(state.projectiles.live, axis=-1).astype(jnp.int32),
     }
 
 

@@ -13,6 +13,7 @@ from functools import partial
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from raidjax import validate
 from raidjax.content import sensed_by
@@ -172,8 +173,11 @@ def _play_games(key: jax.Array, batch: Params, policy: Policy, n_arenas: int, ga
 
 
 def _flatten_games(summaries: dict[str, jax.Array]) -> dict[str, jax.Array]:
-    """``[A, k, ...]`` -> ``[A * k, ...]``: game ``a * k + j`` is arena ``a``'s ``j``-th measured game."""
-    return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), summaries)
+    """``[A, k, ...]`` -> ``[A * k, ...]``: game ``a * k + j`` is arena ``a``'s ``j``-th measured game,
+    its chain ``position`` ``j``."""
+    n_arenas, k = summaries["outcome"].shape[:2]
+    flat = jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), summaries)
+    return {**flat, "position": jnp.tile(jnp.arange(k, dtype=jnp.int32), n_arenas)}
 
 
 @partial(jax.jit, static_argnames=("policy", "n_games", "games_per_arena"))
@@ -186,8 +190,8 @@ def _playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, game
     return _flatten_games(summaries)
 
 
-def playtest_groups(keys: jax.Array, params: Params, policy: Policy, n_games: int, games_per_arena: int = 1,
-                    weights=None) -> dict[str, jax.Array]:
+def playtest_groups(keys: jax.Array, params: Params, policy: Policy, n_games: int,
+                    games_per_arena: int | None = None, weights=None) -> dict[str, jax.Array]:
     """``G`` playtests in one loop, each of one content with its own key: the results of
     ``jax.vmap(lambda k, c: playtest(k, c, policy, n_games, weights, games_per_arena))(keys, params)``
     bit for bit, without a vmapped loop (every arena runs until its own games end; the lanes
@@ -221,21 +225,22 @@ def _playtest_groups(keys, params: Params, policy: Policy, n_games: int, games_p
     per = n_games // games_per_arena
     batch = jax.tree.map(lambda x: jnp.repeat(x, per, axis=0), sensed_by(params, policy))
     summaries, _ = _play_games(keys, batch, bind(policy, weights), groups * per, games_per_arena, grouped=True)
-    return jax.tree.map(lambda x: x.reshape((groups, n_games) + x.shape[2:]), summaries)
+    return jax.tree.map(lambda x: x.reshape((groups, n_games) + x.shape[1:]), _flatten_games(summaries))
 
 
 def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weights=None,
-             games_per_arena: int = 1) -> dict[str, jax.Array]:
+             games_per_arena: int | None = None) -> dict[str, jax.Array]:
     """Play ``n_games`` games in ``n_games // games_per_arena`` parallel arenas, each arena playing
     its ``games_per_arena`` games in a row (``next_episode``), until every arena has played its own.
 
-    Under the ``"reference"`` rules an arena's games depend on the one before (carried
-    cooldowns, the 2023 reset exception), so every arena plays one discarded warm-up game first
-    and its measured games follow it, as the reference build's arenas chain their games
-    (docs/GAME.md). Under the ``"clean"`` rules every game starts fresh. An arena that ends a game
-    starts its next one at once, so with ``games_per_arena > 1`` arenas no longer wait for the
-    batch's longest game, and the warm-up is paid once per arena: the same games (each arena's
-    first ``games_per_arena`` measured ones, short or long) at a fraction of the cost.
+    This is raidjax's one protocol for a win rate, the paper's chained arenas: under the
+    ``"reference"`` rules an arena's games depend on the one before (carried cooldowns, the 2023
+    reset exception), so every arena plays one discarded warm-up game first and its measured games
+    follow it, as the reference build's arenas chain their games (docs/GAME.md, "Episodes of one
+    arena"); by default each arena then plays ``auto_games_per_arena`` games (10 for 1 000 games).
+    Under the ``"clean"`` rules every game starts fresh. An arena that ends a game starts its next
+    one at once, so arenas do not wait for the batch's longest game, and the warm-up is paid once
+    per arena. ``results["position"]`` and ``win_rate_by_position`` tell the chain positions apart.
 
     With several devices (GPUs, hosts after ``jax.distributed.initialize()``), the arenas are
     split evenly over all of them when their number is a multiple of the device count
@@ -256,14 +261,18 @@ def playtest(key: jax.Array, params: Params, policy: Policy, n_games: int, weigh
             the compiled program, not constants in it, so evaluating many checkpoints of one
             network compiles once (``trainers.mapoca.load_policy`` returns ``(policy, weights)``).
         games_per_arena: measured games each arena plays in a row, a whole number >= 1 dividing
-            ``n_games`` (static).
+            each content's games (static); ``None`` (the default): ``auto_games_per_arena`` of each
+            content's games. ``1`` measures only each arena's first game after its warm-up.
 
     Returns:
         Dict of arrays with leading axis ``n_games`` (game ``a * games_per_arena + j`` is arena
         ``a``'s ``j``-th measured game): ``outcome`` int32 (1 win, 2 loss, 3 draw), ``length``
         int32 (decisions), ``damage`` float32[n, P] (to the boss), ``back_attacks`` int32[n, P],
         ``deaths`` int32 (players dead at the end), ``alive`` bool[n, P], ``dropped`` int32
-        (projectiles dropped), ``boss_hp`` float32.
+        (projectiles dropped), ``boss_hp`` float32, ``boss_recharging`` bool[n, S] and
+        ``in_flight`` int32 (what the game hands on to the arena's next one:
+        ``raidjax.logs.episode_summary``), ``position`` int32 (``j``: 0 is the arena's first game
+        after its warm-up).
 
     Raises:
         ValueError: before anything compiles, as ``check_args``: ``n_games`` not a whole number
@@ -291,13 +300,16 @@ def auto_games_per_arena(n_games: int, most: int = MOST_GAMES_PER_ARENA) -> int:
 
 def check_games_per_arena(params: Params, n_games: int, games_per_arena) -> int:
     """``games_per_arena`` as a Python ``int`` after checking that it is a whole number >= 1 that
-    divides each content's games (``n_games``, or ``n_games // G`` for ``G`` contents).
+    divides each content's games (``n_games``, or ``n_games // G`` for ``G`` contents); ``None`` is
+    ``auto_games_per_arena`` of each content's games (raidjax's one protocol).
 
     Raises:
         ValueError: one line naming ``games_per_arena``, the value and what is allowed.
     """
-    k = validate.whole_number("games_per_arena", games_per_arena, 1)
     per_content = n_games // (params.team.shape[0] if params.team.ndim == 2 else 1)
+    if games_per_arena is None:
+        return auto_games_per_arena(per_content)
+    k = validate.whole_number("games_per_arena", games_per_arena, 1)
     if per_content % k:
         raise ValueError(f"games_per_arena: value {k} does not divide the {per_content} games of each content; "
                          f"allowed: a whole number >= 1 dividing {per_content}")
@@ -323,7 +335,7 @@ def _playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games:
 
 
 def playtest_occupancy(key: jax.Array, params: Params, policy: Policy, n_games: int,
-                       bins: int = HEATMAP_BINS, weights=None, games_per_arena: int = 1) -> jax.Array:
+                       bins: int = HEATMAP_BINS, weights=None, games_per_arena: int | None = None) -> jax.Array:
     """Per-player position occupancy over the games ``playtest`` would play with the same key.
 
     Counts, at every decision (the start state included) of every measured game still running,
@@ -368,4 +380,28 @@ def win_rate(results: dict[str, jax.Array]) -> jax.Array:
     return jnp.mean(outcome == 1)
 
 
-__all__ = ["playtest", "playtest_groups", "playtest_occupancy", "broadcast_params", "win_rate", "auto_games_per_arena"]
+def win_rate_by_position(results: dict) -> np.ndarray:
+    """Win rate at each chain position, on the host: a diagnostic of how a game's outcome depends
+    on the games its arena played before (docs/GAME.md, "Episodes of one arena").
+
+    Args:
+        results: what ``playtest`` or ``playtest_groups`` returns (``outcome`` and ``position``,
+            any leading axes).
+
+    Returns:
+        ``float64[k]``: the share of wins among the games at position ``j`` (0: each arena's first
+        game after its warm-up), ``k = games_per_arena``.
+
+    Raises:
+        ValueError: ``results`` without ``outcome`` and ``position`` arrays of one shape.
+    """
+    outcome = results.get("outcome") if isinstance(results, Mapping) else None
+    position = results.get("position") if isinstance(results, Mapping) else None
+    if outcome is None or position is None or np.shape(outcome) != np.shape(position) or np.size(outcome) == 0:
+        raise validate.fail("results", results, "the dict playtest returns, with 'outcome' and 'position' arrays")
+    won, pos = np.asarray(outcome).reshape(-1) == 1, np.asarray(position).reshape(-1)
+    return np.bincount(pos, weights=won) / np.bincount(pos)
+
+
+__all__ = ["playtest", "playtest_groups", "playtest_occupancy", "broadcast_params", "win_rate", "win_rate_by_position",
+           "auto_games_per_arena"]

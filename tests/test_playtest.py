@@ -49,7 +49,9 @@ def optimized_reference(ref_params):
 def test_reference_playtest_results_are_consistent(reference_results):
     """The reference content's games (range 5, PT-HR), chained as the reference's arenas play them."""
     r = reference_results
-    assert set(r) == {"outcome", "length", "damage", "back_attacks", "deaths", "alive", "dropped", "boss_hp"}
+    assert set(r) == {"outcome", "length", "damage", "back_attacks", "deaths", "alive", "dropped", "boss_hp",
+                      "boss_recharging", "in_flight", "position"}
+    assert r["position"].tolist() == [0, 1, 0, 1]  # game a * k + j is arena a's j-th measured game
     assert r["outcome"].shape == (N,) and r["damage"].shape == (N, 3) and r["alive"].shape == (N, 3)
     assert set(r["outcome"].tolist()) <= {1, 2}  # every reference game ends by a win or a loss
     assert (r["length"] < 2000).all() and (r["length"] > 0).all()  # ended early
@@ -103,6 +105,25 @@ def test_games_per_arena_is_checked_before_compiling(k, why):
     with pytest.raises(ValueError, match="games_per_arena") as err:
         raidjax.playtest(jax.random.key(0), stack(WIN, LOSS), policies.heuristic, 8, games_per_arena=k)
     assert why.split()[0] in str(err.value)
+
+
+def test_win_rate_by_position_groups_games_by_their_place_in_the_chain():
+    fake = {"outcome": jnp.array([1, 2, 1, 1, 3, 1]), "position": jnp.array([0, 1, 2, 0, 1, 2])}
+    np.testing.assert_allclose(raidjax.win_rate_by_position(fake), [1.0, 0.0, 1.0])
+    groups = {k: v.reshape(2, 3) for k, v in fake.items()}  # playtest_groups' [G, n_games]
+    np.testing.assert_allclose(raidjax.win_rate_by_position(groups), [1.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match="results: "):
+        raidjax.win_rate_by_position({"outcome": fake["outcome"]})
+
+
+def test_default_games_per_arena_is_the_one_protocol():
+    """Without ``games_per_arena`` a playtest chains ``auto_games_per_arena`` games of each content per
+    arena (checked on the host, before anything compiles)."""
+    from raidjax.playtest import auto_games_per_arena, check_games_per_arena
+    assert check_games_per_arena(WIN, 1000, None) == auto_games_per_arena(1000) == 10
+    assert check_games_per_arena(stack(WIN, LOSS), 600, None) == auto_games_per_arena(300) == 10
+    assert check_games_per_arena(stack(WIN, LOSS, DRAW, WIN), 4, None) == 1  # one game per content
+    assert check_games_per_arena(WIN, 8, 2) == 2
 
 
 def test_auto_games_per_arena_divides():

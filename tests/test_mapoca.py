@@ -21,6 +21,7 @@ from trainers.config import PRESETS, Config, load_config
 from trainers.mapoca import (
     Batch,
     advantages,
+    explained_variance,
     lambda_returns,
     load_policy,
     loss_fn,
@@ -56,6 +57,19 @@ def test_lambda_returns_truncation_and_termination():
     # arena 1, t=1 terminated: 2; t=0: 1 + .5*(.5*10 + .5*2) = 4
     np.testing.assert_allclose(g[:, 0], [6.5, 12.0, 16.5, 24.0])
     np.testing.assert_allclose(g[:, 1], [4.0, 2.0, 16.5, 24.0])
+
+
+def test_explained_variance_by_hand():
+    target = jnp.array([1.0, 2.0, 3.0, 4.0])  # variance 1.25
+    assert float(explained_variance(target, target)) == 1.0
+    assert float(explained_variance(jnp.full(4, 2.5), target)) == 0.0  # the mean explains nothing
+    # residuals (0, 0, 0, 2): variance 0.75, so 1 - 0.75 / 1.25 = 0.4
+    np.testing.assert_allclose(float(explained_variance(jnp.array([1.0, 2.0, 3.0, 2.0]), target)), 0.4, rtol=1e-6)
+    # masked: only the first two entries count (target 1, 2: variance 0.25; residuals 0, 0.5: 0.0625)
+    where = jnp.array([True, True, False, False])
+    np.testing.assert_allclose(float(explained_variance(jnp.array([1.0, 1.5, 9.0, 9.0]), target, where)), 0.75,
+                               rtol=1e-6)
+    assert float(explained_variance(jnp.zeros(3), jnp.ones(3))) == 0.0  # a constant target: 0, not NaN
 
 
 def test_posthumous_credit_mid_episode_death():
@@ -278,6 +292,10 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
     r1, m1 = chunk(r0)
     straight, m_straight = chunk(r1)
     assert m1["loss"].shape == (2,) and int(straight.update[0]) == cfg.num_updates
+    diagnostics = ("entropy", "approx_kl", "clip_frac", "value_explained_variance", "baseline_explained_variance",
+                   "grad_norm")
+    assert all(m1[k].shape == (2,) for k in diagnostics)  # the learner's diagnostics, per chunk and seed
+    assert (np.asarray(m1["grad_norm"]) > 0).all() and (np.asarray(m1["value_explained_variance"]) <= 1).all()
     assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves((m1, m_straight, straight.params)))
     assert set(np.unique(np.asarray(straight.skills))) <= {9.0, 13.0}
     # every finished episode is counted in its arena (the range redraw cadence, next_ranges)

@@ -131,6 +131,22 @@ def advantages(returns: jax.Array, baseline: jax.Array, alive: jax.Array) -> jax
     return jnp.where(alive, (a - mean) / (std + 1e-8), 0.0)
 
 
+def explained_variance(pred: jax.Array, target: jax.Array, where: jax.Array | None = None) -> jax.Array:
+    """``1 - Var(target - pred) / Var(target)`` over the entries ``where`` (all by default): 1 for a
+    perfect critic, 0 for one that predicts the mean, negative for a worse one; 0 when the target
+    does not vary. ``pred``, ``target`` and ``where`` broadcast together. Returns ``float32[]``."""
+    pred, target = jnp.broadcast_arrays(pred, target)
+    m = jnp.ones(pred.shape, jnp.float32) if where is None else jnp.broadcast_to(where, pred.shape).astype(jnp.float32)
+    n = jnp.maximum(m.sum(), 1.0)
+
+    def var(x):
+        mean = jnp.sum(x * m) / n
+        return jnp.sum(jnp.square(x - mean) * m) / n
+
+    v = var(target)
+    return jnp.where(v > 0, 1.0 - var(target - pred) / jnp.where(v > 0, v, 1.0), 0.0)
+
+
 def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: float, ent_coef):
     """MA-POCA loss ``L = L_pi + 0.5 (L_V + 0.5 L_b) - β H`` on one minibatch.
 
@@ -283,6 +299,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         def minibatch(carry, mb):
             params, opt_state = carry
             grads, aux = jax.grad(loss_fn, has_aux=True)(params, mb, actor, critic, cfg.clip_eps, beta)
+            aux["grad_norm"] = jnp.sqrt(sum(jnp.sum(jnp.square(g)) for g in jax.tree.leaves(grads)))  # unclipped
             upd, opt_state = tx.update(grads, opt_state, params)
             return (optax.apply_updates(params, upd), opt_state), aux
 
@@ -297,6 +314,8 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         metrics = {k: v.mean() for k, v in aux.items()}
         metrics.update({k: v.sum().astype(jnp.float32) for k, v in ep.items()})
         metrics["value_mean"] = traj.value.mean()
+        metrics["value_explained_variance"] = explained_variance(traj.value, returns)
+        metrics["baseline_explained_variance"] = explained_variance(traj.baseline, returns[..., None], traj.alive)
         runner = runner.replace(params=params, opt_state=opt_state, key=key, update=runner.update + 1)
         return runner, metrics
 

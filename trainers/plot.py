@@ -1,4 +1,5 @@
-"""Learning curves of MA-POCA runs from their ``metrics.csv`` (one row per chunk).
+"""Learning curves and the learner's diagnostics (entropy, approximate KL, clipped fraction, value and
+baseline explained variance, gradient norm) of MA-POCA runs from their ``metrics.csv`` (one row per chunk).
 
     python -m trainers.plot runs/mapoca_cpu_r9 runs/mapoca_cpu_r13 --out docs/img/mapoca_curves.png
 """
@@ -23,6 +24,11 @@ def read_metrics(run: str | Path) -> dict[str, list[float]]:
 
 
 COLUMNS = ("env_steps", "win_rate", "return")  # of a MA-POCA run's metrics.csv (trainers.mapoca_cli)
+# The panels: a metrics.csv column (per chunk) and its axis label; the learner's diagnostics after the curves.
+PANELS = (("win_rate", "training win rate"), ("return", "team return per episode"), ("entropy", "policy entropy"),
+          ("approx_kl", "approximate KL per update"), ("clip_frac", "clipped fraction of ratios"),
+          ("value_explained_variance", "value explained variance"),
+          ("baseline_explained_variance", "baseline explained variance"), ("grad_norm", "gradient norm"))
 
 
 def _check_run(run: str) -> None:
@@ -49,8 +55,8 @@ def _check_run(run: str) -> None:
 
 
 def main(argv=None) -> None:
-    """Plot win rate and return per episode against decisions for each run; every argument is
-    checked before matplotlib is imported (``ValueError``, one line)."""
+    """Plot win rate, return per episode and the learner's diagnostics (``PANELS``) against decisions
+    for each run; every argument is checked before matplotlib is imported (``ValueError``, one line)."""
     ap = argparse.ArgumentParser(prog="python -m trainers.plot", formatter_class=HelpFormatter,
                                  description="Learning curves of MA-POCA runs from their metrics.csv.")
     ap.add_argument("runs", nargs="+", help="MA-POCA run folders (trainers.mapoca_cli --out)")
@@ -65,18 +71,22 @@ def main(argv=None) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax_w, ax_r) = plt.subplots(1, 2, figsize=(10, 3.6))
+    fig, axes = plt.subplots(2, 4, figsize=(15, 6.4))
     for run in args.runs:
         m = read_metrics(run)
         steps = [s / 1e6 for s in m["env_steps"]]
-        label = Path(run).name
-        ax_w.plot(steps, m["win_rate"], label=label)
-        ax_r.plot(steps, m["return"], label=label)
-    ax_w.set(xlabel="environment decisions (M)", ylabel="training win rate (per chunk)", ylim=(0, 1.02))
-    ax_r.set(xlabel="environment decisions (M)", ylabel="team return per episode")
-    for ax in (ax_w, ax_r):
+        for ax, (col, _) in zip(axes.flat, PANELS, strict=True):
+            if col in m:  # runs saved before a diagnostic existed leave its panel empty
+                ax.plot(steps, m[col], label=Path(run).name)
+    for ax, (col, ylabel) in zip(axes.flat, PANELS, strict=True):
+        ax.set(xlabel="environment decisions (M)", ylabel=ylabel)
+        if col == "win_rate":
+            ax.set_ylim(0, 1.02)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        if ax.lines:
+            ax.legend(fontsize=7)
+        else:
+            ax.text(0.5, 0.5, "not recorded by these runs", ha="center", va="center", transform=ax.transAxes)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format=Path(args.out).suffix.lstrip(".").lower(), dpi=110)

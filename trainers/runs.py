@@ -26,6 +26,7 @@ import numpy as np
 import raidjax
 from raidjax import pcg
 from raidjax.io import atomic_write, finite_json, machine
+from raidjax.playtest import auto_games_per_arena
 from trainers import checkpoint
 from trainers.config import Config, PPOConfig
 from trainers.generate import generate_episodes, target_groups
@@ -131,20 +132,41 @@ def eval_contents(cfg: Config) -> dict[str, raidjax.Params]:
     return {"/".join(f"{v:g}" for v in sk): space.apply(base, jnp.asarray(sk)) for sk in pcg.env.box_probes(space)}
 
 
+def chained_win_rates(results: dict) -> dict:
+    """A team's win rates from a ``raidjax.playtest`` under the one protocol (chained arenas after a
+    warm-up): ``win_rate`` over every game with its binomial standard error ``win_rate_se``, and the
+    chain diagnostic: ``win_rate_first_game`` (each arena's first game after its warm-up),
+    ``win_rate_later_games`` and ``win_rate_by_position``. JSON-able (floats rounded to 6 places)."""
+    won = np.asarray(results["outcome"]).reshape(-1) == 1
+    pos = np.asarray(results["position"]).reshape(-1)
+    rate = lambda x: round(float(x), 6)
+    later = won[pos > 0]
+    return {"win_rate": rate(won.mean()), "win_rate_se": rate(np.sqrt(won.mean() * (1 - won.mean()) / won.size)),
+            "win_rate_first_game": rate(won[pos == 0].mean()),
+            "win_rate_later_games": rate(later.mean()) if later.size else None,
+            "win_rate_by_position": [rate(x) for x in raidjax.win_rate_by_position(results)]}
+
+
 def evaluate_teams(out: Path, cfg: Config, n_seeds: int, key: jax.Array) -> dict:
-    """Win rates of every seed's trained team and of PT-HR over ``cfg.eval_games`` games per
-    content of ``eval_contents`` (same content, same typed PRNG ``key``). Returns a JSON-able
-    dict (``per_range`` keyed by ``eval_contents``' labels)."""
+    """Every seed's trained team and PT-HR over ``cfg.eval_games`` games per content of
+    ``eval_contents`` (same content, same typed PRNG ``key``), by raidjax's one protocol: chained
+    arenas after a warm-up game, ``auto_games_per_arena`` games each (``raidjax.playtest``'s
+    default). Returns a JSON-able dict: ``win_rate`` and ``heuristic_win_rate`` (means over the
+    contents), and ``per_range`` keyed by ``eval_contents``' labels, each with the seeds' mean,
+    ``per_seed`` (``chained_win_rates`` of each seed) and ``heuristic`` (PT-HR's)."""
     per_range = {}
     teams = [load_policy(out, seed=s) for s in range(n_seeds)]  # one policy, n_seeds weights: one compile
-    rate = lambda x: round(float(x), 6)  # float32 win rates without their float32 noise (0.726, not 0.72600001)
     for label, content in eval_contents(cfg).items():
-        hr = rate(raidjax.win_rate(raidjax.playtest(key, content, raidjax.policies.heuristic, cfg.eval_games)))
-        wins = [rate(raidjax.win_rate(raidjax.playtest(key, content, p, cfg.eval_games, weights=w))) for p, w in teams]
-        per_range[label] = {"win_rate": rate(np.mean(wins)), "win_rate_per_seed": wins, "heuristic_win_rate": hr}
+        hr = chained_win_rates(raidjax.playtest(key, content, raidjax.policies.heuristic, cfg.eval_games))
+        seeds = [chained_win_rates(raidjax.playtest(key, content, p, cfg.eval_games, weights=w)) for p, w in teams]
+        per_range[label] = {k: round(float(np.mean([x[k] for x in seeds])), 6)
+                            for k in ("win_rate", "win_rate_first_game")}
+        per_range[label].update(per_seed=seeds, heuristic=hr)
+    mean = lambda f: round(float(np.mean([f(v) for v in per_range.values()])), 6)
     return {
-        "win_rate": rate(np.mean([v["win_rate"] for v in per_range.values()])),
-        "heuristic_win_rate": rate(np.mean([v["heuristic_win_rate"] for v in per_range.values()])),
+        "win_rate": mean(lambda v: v["win_rate"]),
+        "heuristic_win_rate": mean(lambda v: v["heuristic"]["win_rate"]),
+        "games_per_arena": auto_games_per_arena(cfg.eval_games),
         "per_range": per_range,
     }
 

@@ -36,9 +36,9 @@ TEST_RANGES = (3.0, 4.0, 19.0, 20.0)
 HEATMAP_DPI = 110
 
 
-def _rates(cells: list[dict], agent: str, content: str, rng: float) -> np.ndarray:
-    """Win rates ``float[k]`` of ``agent`` on ``content`` at range ``rng`` (one per seed/run)."""
-    return np.asarray([c["win_rate"] for c in cells
+def _rates(cells: list[dict], agent: str, content: str, rng: float, field: str = "win_rate") -> np.ndarray:
+    """``field`` (a win rate) ``float[k]`` of ``agent`` on ``content`` at range ``rng`` (one per seed/run)."""
+    return np.asarray([c.get(field, np.nan) for c in cells
                        if c["agent"] == agent and c["content"] == content and c["range"] == rng
                        and c["group"] != "population"], float)
 
@@ -71,11 +71,27 @@ def win_rate_table(rf: RunFolder, cells: list[dict]) -> dict:
                              "sd": float(v.std()), "n": v.size, "paper": float("nan")})
             means[f"{agent}@{r:g}/mixed"] = float(v.mean())
     n_games = cells[0]["games"]
+    chain_rows = []
+    for agent in ("PT-HR", "MA-POCA"):  # the chain diagnostic: first games after the warm-up against later ones
+        row = [agent]
+        for r in TABLE_RANGES:
+            first, later = (_rates(cells, agent, "reference", r, f) for f in ("win_rate_first_game",
+                                                                                 "win_rate_later_games"))
+            row.append(f"{_ms(first)} / {_ms(later)}")
+            means[f"{agent}@{r:g}/first_game"], means[f"{agent}@{r:g}/later_games"] = (float(np.mean(first)),
+                                                                                     float(np.mean(later)))
+        chain_rows.append(row)
     md = ("## Win rate by skill range (reference content)\n\n"
-          f"Mean ± SD over seeds of the win rate in {n_games} games per seed; the paper's value in brackets. "
+          f"Mean ± SD over seeds of the win rate in {n_games} games per seed (arenas chaining their games after a "
+          "warm-up, `raidjax.playtest`); the paper's value in brackets. "
           "The mixed-team rows (not in the paper) play a warrior, a mage and a priest from the catalogue, "
           "every player's skill slot 1 at the range.\n\n"
-          + markdown_table(["agent"] + [f"range {r:g}" for r in TABLE_RANGES], rows))
+          + markdown_table(["agent"] + [f"range {r:g}" for r in TABLE_RANGES], rows)
+          + "\n\n### By chain position\n\n"
+          "The same games split by their place in the arena's chain: each arena's first game after its warm-up "
+          "/ its later games (mean ± SD over seeds). Under the reference rules an arena's games depend on the "
+          "ones before (docs/GAME.md, \"Episodes of one arena\").\n\n"
+          + markdown_table(["agent"] + [f"range {r:g}: first / later" for r in TABLE_RANGES], chain_rows))
     rf.write_table("win_rate", md)
     rf.write_csv("win_rate_table", csv_rows)
     return means

@@ -263,9 +263,19 @@ def stage_evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int
                               lambda k, c, p: raidjax.playtest(k, c, p, scale.games,
                                                                games_per_arena=chained)["outcome"], senses))
     rf.log(f"evaluate: {len(cells)} team cells x {scale.games} games in {time.perf_counter() - t:.0f}s")
+    position = np.tile(np.arange(chained), scale.games // chained)  # raidjax.playtest's game order
+
+    def rates(o: np.ndarray) -> dict:
+        """A cell's win and draw rates, and the chain diagnostic: its arenas' first games after
+        their warm-ups against their later games."""
+        later = o[position > 0]
+        return {"win_rate": float(np.mean(o == 1)), "draw_rate": float(np.mean(o == 3)),
+                "win_rate_first_game": float(np.mean(o[position == 0] == 1)),
+                "win_rate_later_games": float(np.mean(later == 1)) if later.size else float("nan"),
+                "games": scale.games}
+
     rows = [{"agent": runs[i]["name"].split("/")[1] if runs[i]["group"] == "robust" else "MA-POCA",
-             "group": runs[i]["group"], "run": runs[i]["name"], "seed": s, "content": kind, "range": rg,
-             "win_rate": float(np.mean(o == 1)), "draw_rate": float(np.mean(o == 3)), "games": scale.games}
+             "group": runs[i]["group"], "run": runs[i]["name"], "seed": s, "content": kind, "range": rg, **rates(o)}
             for (i, kind, rg, s), o in zip(cells, out, strict=True)]
     # scripted agents: every (content, range) cell x `seeds` independent batches of games, one
     # playtest per policy with one content per group of games
@@ -279,8 +289,7 @@ def stage_evaluate(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int
                                weights=jnp.int32(which), games_per_arena=chained)["outcome"]
         for (kind, rg, sd), o in zip(pt_cells, np.asarray(out).reshape(len(pt_cells), scale.games), strict=True):
             rows.append({"agent": name, "group": "scripted", "run": name, "seed": sd, "content": kind, "range": rg,
-                         "win_rate": float(np.mean(o == 1)), "draw_rate": float(np.mean(o == 3)),
-                         "games": scale.games})
+                         **rates(o)})
     rf.write_csv("win_rates", rows)
     return {"cells": rows}
 

@@ -254,3 +254,21 @@ def test_the_observation_comparison_changes_only_the_senses():
     paper, ours = b1.config_of(scale, "paper"), b1.config_of(scale, "paper-raidjax-senses")
     assert (paper.senses, ours.senses) == ("reference", "raidjax") and ours.replace(senses="reference") == paper
     assert b1.runs_of(scale, "paper") == b1.runs_of(scale, "paper-raidjax-senses")
+
+
+# --- the calibration contract's verdict (GAME.md §9) ---------------------------------------
+
+
+def test_calibration_verdict_uses_the_cells_sampling_error():
+    from raidjax.calibrate import markdown, outside_band
+
+    # PT-HR at range 9: band 0.371 ± 0.10 = [0.271, 0.471]. 0.472 with standard error 0.016 (1 000
+    # games) has the interval [0.441, 0.503], which overlaps the band: consistent with it.
+    assert not outside_band(0.472, 0.016, 0.371, 0.10)
+    # 0.52 ± 1.96 x 0.016 = [0.489, 0.551] lies wholly above 0.471: outside.
+    assert outside_band(0.52, 0.016, 0.371, 0.10)
+    assert outside_band(0.22, 0.01, 0.371, 0.10)  # [0.200, 0.240] wholly below 0.271
+    table = {"heuristic": {"win_rate": [0.09, 0.472, 0.72, 0.76], "stderr": [0.009, 0.016, 0.014, 0.013]}}
+    assert "| yes (±0.1) |" in markdown(table, 1000)
+    table["heuristic"]["win_rate"][1] = 0.52
+    assert "| NO (±0.1) |" in markdown(table, 1000)

@@ -86,7 +86,9 @@ def batched(fn, full: tuple[int, ...] = (), out_like=None):
     argument gets a trailing lane of size 1 (it broadcasts against the arenas), or, at the
     positions ``full`` (arguments whose shape the outputs keep, such as a carried state), is
     broadcast to the batch. ``fn`` runs once on the lanes and every output's axis moves back to the
-    front. Nested ``vmap``s batch the rule's program as any other (the arena axis stays innermost).
+    front. The lane call has the same rule, so nested ``vmap``s (a learner's runs, each with its
+    arenas) add one lane each: the arenas of every run are lanes of one lane program, which skips
+    the work that no arena of any run needs (``if_any``) as a single batch of arenas does.
     ``out_like`` as in ``with_vmap_rule``: given, one arena's ``fn`` is traced only where it runs.
     """
 
@@ -104,9 +106,10 @@ def batched(fn, full: tuple[int, ...] = (), out_like=None):
 
         lanes = tuple(jax.tree.map(functools.partial(to_lanes, width=axis_size if i in full else 1), a, b)
                       for i, (a, b) in enumerate(zip(args, in_batched, strict=True)))
-        return jax.tree.map(lambda x: jnp.moveaxis(x, -1, 0), traced(*lanes))
+        return jax.tree.map(lambda x: jnp.moveaxis(x, -1, 0), lane_call(*lanes))
 
-    return functools.wraps(fn)(with_vmap_rule(traced, rule, out_like))
+    lane_call = with_vmap_rule(traced, rule, out_like)
+    return functools.wraps(fn)(lane_call)
 
 
 def with_vmap_rule(fn, rule, out_like=None):

@@ -190,6 +190,14 @@ def test_batched_traces_only_the_program_that_runs():
     shapes.clear()
     jax.vmap(default, in_axes=(0, None))(a, b)
     assert shapes == [((3,), (3,)), ((3, 4), (3, 1))]
+    # Nested vmaps (a learner's runs, each with its arenas) add one lane each, innermost first: the
+    # lane function still runs once, on every arena of every group.
+    shapes.clear()
+    groups = a.reshape(2, 2, 3)  # two groups of two arenas
+    s, m = jax.jit(jax.vmap(jax.vmap(g, in_axes=(0, None)), in_axes=(0, None)))(groups, b)
+    np.testing.assert_array_equal(s, groups + b)
+    np.testing.assert_array_equal(m, groups * b)
+    assert shapes == [((3, 2, 2), (3, 1, 1))]
 
 
 @pytest.mark.parametrize("rules", ["reference", "clean"])
@@ -240,3 +248,10 @@ def test_nested_vmap_equals_the_flat_one():
     nested = optimized(jax.vmap(jax.vmap(raidjax.step)), nest(keys), nest(stacked(states)), nest(actions),
                        nest(stacked(contents)))
     assert_equal(jax.tree.map(lambda x: x.reshape((4,) + x.shape[2:]), nested)[1:], flat[1:])
+    # The groups' arenas are lanes of one lane program, which keeps the conditionals that skip work
+    # no arena needs (lanes.if_any; on XLA:CPU): as many as the flat program's.
+    args = (keys, stacked(states), actions, stacked(contents))
+    count = lambda f, *a: jax.jit(f).lower(*a).as_text().count("stablehlo.case")  # noqa: E731
+    n_flat = count(jax.vmap(raidjax.step), *args)
+    assert count(jax.vmap(jax.vmap(raidjax.step)), *map(nest, args)) == n_flat
+    assert (n_flat > 0) == (jax.default_backend() == "cpu")

@@ -9,6 +9,7 @@ machine may be shared) and, per preset, compile seconds, seconds per update and 
 
     python benchmarks/train_throughput.py --presets paper cpu --repeats 3
     python benchmarks/train_throughput.py --presets cpu --pieces   # where an update's time goes
+    python benchmarks/train_throughput.py --presets cpu --runs 1 8 32   # Benchmark 1's runs side by side
 
 ``--pieces`` also times, for the same arenas and decisions, (1) the environment alone
 (``raidjax.step_autoreset`` in a ``lax.scan`` with random actions and per-arena content, no networks) and (2) whole
@@ -66,6 +67,36 @@ def bench(preset: str, repeats: int, **overrides) -> dict:
         "decisions_per_s": round(cfg.decisions_per_update / best),
         "agent_steps_per_s": round(3 * cfg.decisions_per_update / best),
     }
+
+
+def bench_runs(n_runs: int, repeats: int, protocol: str = "paper") -> dict:
+    """Time one chunk of the first ``n_runs`` runs of Benchmark 1's ``cpu`` scale trained side by
+    side as the pipeline trains them (``experiments.benchmark1``: each run its own seed, content
+    and range table, ``trainers.loop.over_runs``). Returns a JSON-able dict with the aggregate
+    decisions/s of all runs."""
+    from experiments import benchmark1 as b1
+    from trainers import loop
+
+    scale = b1.SCALES["cpu"]
+    cfg = b1.config_of(scale, protocol)
+    trainer = make_trainer(cfg, redraw_ranges=True)
+    args = b1._run_inputs(b1.runs_of(scale, protocol)[:n_runs], 0)
+    state = jax.jit(loop.over_runs(trainer.init, n_runs))(*args)
+    t0 = time.perf_counter()
+    chunk = jax.jit(loop.over_runs(trainer.chunk, n_runs), donate_argnums=0).lower(state).compile()
+    compile_s = time.perf_counter() - t0
+    state, m = chunk(state)  # warm-up
+    jax.block_until_ready(m)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        state, m = chunk(state)
+        jax.block_until_ready(m)
+        times.append(time.perf_counter() - t0)
+    decisions = n_runs * cfg.decisions_per_update * cfg.updates_per_chunk
+    return {"protocol": protocol, "runs": n_runs, "hidden": cfg.hidden, "senses": cfg.senses,
+            "compile_s": round(compile_s, 2), "seconds_per_chunk": [round(t, 3) for t in times],
+            "decisions_per_s_all_runs": round(decisions / min(times))}
 
 
 def best_seconds(fn, arg, repeats: int) -> float:
@@ -160,11 +191,16 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--arenas", type=int, help="override n_arenas of every preset")
     ap.add_argument("--pieces", action="store_true", help="also split an update into rollout and epochs")
+    ap.add_argument("--runs", type=int, nargs="+", default=[],
+                    help="also time the first N runs of Benchmark 1's cpu scale trained side by side, for each N")
+    ap.add_argument("--protocol", default="paper", help="Benchmark 1's protocol for --runs")
     args = ap.parse_args()
     overrides = {} if args.arenas is None else {"n_arenas": args.arenas}
     results = [bench(p, args.repeats, **overrides) for p in args.presets]
     out = {"benchmark": "train_throughput", "machine": machine(load=True),
            "results": results}
+    if args.runs:
+        out["side_by_side"] = [bench_runs(n, args.repeats, args.protocol) for n in args.runs]
     if args.pieces:
         out["pieces"] = [pieces(p, args.repeats, r, **overrides) for p, r in zip(args.presets, results, strict=True)]
     print(json.dumps(out))

@@ -2,9 +2,9 @@
 
     python -m experiments.benchmark1 --scale {smoke,cpu,paper} --out DIR [--protocol {paper,raidjax}]
 
-Every MA-POCA run of the benchmark trains in **one** vmapped, jitted program: each run is a row
-with its own seed, content and set of skill ranges (``trainers.curriculum.range_table``), so the
-whole benchmark compiles once. The runs (``R`` = seeds, ``Q`` = population size):
+The MA-POCA runs train side by side in vmapped, jitted programs of ``Scale.runs_per_program`` runs
+(8), one group after another: each run is a row with its own seed, content and set of skill ranges
+(``trainers.curriculum.range_table``), so groups of one size share one compiled program. The runs (``R`` = seeds, ``Q`` = population size):
 
 - ``table/r{5,9,13,17}`` x R: the win-rate table's MA-POCA, reference content at one range;
 - ``robust/MA-POCA{1..4}`` x R: ranges drawn (see the protocols) from {5}, {5,9}, {5,9,13}, {5,9,13,17};
@@ -31,6 +31,7 @@ PT-HR/PT-RD, ``games`` games per cell, all cells in one vmapped playtest), ``hea
 from __future__ import annotations
 
 import argparse
+import csv
 import dataclasses
 import io
 import time
@@ -91,6 +92,10 @@ class Scale:
     checkpoint_chunks: int  # checkpoint every this many chunks
     trainer: tuple[tuple[str, object], ...] = ()
     fast_compile: bool = False  # compile the learner with trainers.loop.FAST_COMPILE (numbers not read)
+    # Runs trained side by side in one vmapped program; the groups train one after another. On the
+    # 2-core CPU 8 runs of the cpu preset train at 1.06x one run's decisions/s in aggregate, 32 runs
+    # at 0.97x (benchmarks/train_throughput.py --runs 1 8 32; the 32 runs' rollouts fill memory).
+    runs_per_program: int = 8
 
 
 SCALES = {
@@ -157,8 +162,10 @@ def _stack(trees):
     return jax.tree.map(lambda *x: jnp.stack(x), *trees)
 
 
-def _run_inputs(runs: list[dict], base_seed: int):
-    keys = jnp.stack([jax.random.fold_in(jax.random.PRNGKey(base_seed), i) for i in range(len(runs))])
+def _run_inputs(runs: list[dict], base_seed: int, first: int = 0):
+    """Keys, contents and range tables of ``runs``, the runs ``first``, ``first + 1``, ... of the
+    benchmark (a run's key depends on its place in the whole benchmark, not in its group)."""
+    keys = jnp.stack([jax.random.fold_in(jax.random.PRNGKey(base_seed), first + i) for i in range(len(runs))])
     contents = _stack([content_of(r["content"]) for r in runs])
     tables = jnp.stack([range_table(r["ranges"], size=RANGE_TABLE) for r in runs])  # one shape for all runs
     return keys, contents, tables
@@ -177,30 +184,67 @@ def _training_wins(row: dict) -> str:
     return "training win " + "  ".join(f"{g} {np.mean(w):.2f}" for g, w in groups.items() if g != "mixed")
 
 
+def groups_of(n_runs: int, per_program: int) -> list[range]:
+    """The runs' indices cut into consecutive groups of at most ``per_program`` runs, each trained
+    as one vmapped program (``Scale.runs_per_program``)."""
+    return [range(i, min(i + per_program, n_runs)) for i in range(0, n_runs, per_program)]
+
+
+def merge_group_metrics(rf: RunFolder, n_groups: int) -> None:
+    """``train/metrics.csv``: the groups' rows side by side (row ``i`` of every group is its chunk
+    ``i``; the ``win/<run>/<seed>`` columns of every run), the file the report reads."""
+    tables = []
+    for g in range(n_groups):
+        with open(rf.path("train", f"metrics_group{g}.csv")) as f:
+            tables.append(list(csv.DictReader(f)))
+    n = min(len(t) for t in tables)
+    rows = [{k: v for t in tables for k, v in t[i].items()} for i in range(n)]
+    buf = io.StringIO()
+    if rows:
+        w = csv.DictWriter(buf, list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    atomic_write(rf.path("train", "metrics.csv"), buf.getvalue())
+
+
 def stage_train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, max_chunks: int | None = None,
-          protocol: str = "paper") -> dict:
-    """Train every run together (resuming from the last checkpoint; ``trainers.loop``); returns
+                protocol: str = "paper") -> dict:
+    """Train every run, ``scale.runs_per_program`` at a time in one vmapped program (resuming each
+    group from its last checkpoint, ``checkpoints/mapoca/group<g>``; ``trainers.loop``); returns
     timing figures. ``max_chunks`` stops after that many chunks of this invocation (raises
     ``Interrupted``, after a checkpoint)."""
     cfg = config_of(scale, protocol)
+    trainer = make_trainer(cfg, redraw_ranges=True)
+    groups = groups_of(len(runs), scale.runs_per_program)
+    rf.log(f"train: {len(runs)} runs in {len(groups)} group(s) of up to {scale.runs_per_program} x {cfg.num_chunks} "
+           f"chunks x {cfg.updates_per_chunk * cfg.decisions_per_update} decisions")
+    seconds, compile_seconds, left = 0.0, 0.0, max_chunks
+    for g, idx in enumerate(groups):
+        members = [runs[i] for i in idx]
 
-    def row(m: dict) -> dict:
-        win = m["wins"] / np.maximum(m["episodes"], 1)
-        return {f"win/{r['name']}/{r['seed']}": float(w) for r, w in zip(runs, win, strict=True)}
+        def row(m: dict, members=members) -> dict:
+            win = m["wins"] / np.maximum(m["episodes"], 1)
+            return {f"win/{r['name']}/{r['seed']}": float(w) for r, w in zip(members, win, strict=True)}
 
-    learner = mapoca_learner(make_trainer(cfg, redraw_ranges=True), _run_inputs(runs, base_seed), len(runs),
-                             row=row, describe=_training_wins,
-                             compiler_options=loop.compiler_options(scale.fast_compile))
-    rf.log(f"train: {len(runs)} runs x {cfg.num_chunks} chunks x {cfg.updates_per_chunk * cfg.decisions_per_update} "
-           "decisions")
-    done = loop.train(learner, rf.path("checkpoints", "mapoca"), rf.out / "train", log=lambda s: rf.log(f"train: {s}"),
-                      checkpoint_every=scale.checkpoint_chunks, max_chunks=max_chunks)
-    if not done.finished:
-        raise Interrupted(f"stopped at update {done.update}/{cfg.num_updates} (--max-chunks); "
-                          "rerun with --resume to continue")
+        learner = mapoca_learner(trainer, _run_inputs(members, base_seed, idx[0]), len(members), row=row,
+                                 describe=_training_wins, compiler_options=loop.compiler_options(scale.fast_compile))
+        done = loop.train(learner, rf.path("checkpoints", "mapoca", f"group{g}"), rf.out / "train",
+                          metrics_name=f"metrics_group{g}", log=lambda s, g=g: rf.log(f"train group {g}: {s}"),
+                          checkpoint_every=scale.checkpoint_chunks, max_chunks=left)
+        seconds += done.seconds
+        compile_seconds += done.compile_seconds
+        if not done.finished:
+            raise Interrupted(f"stopped in group {g} at update {done.update}/{cfg.num_updates} (--max-chunks); "
+                              "rerun with --resume to continue")
+        if left is not None:
+            left -= (done.update - done.start_update) // cfg.updates_per_chunk
+            if left <= 0 and g + 1 < len(groups):
+                raise Interrupted(f"stopped after group {g} (--max-chunks); rerun with --resume to continue")
+    merge_group_metrics(rf, len(groups))
     decisions = cfg.num_updates * cfg.decisions_per_update
-    return {"runs": len(runs), "decisions_per_run": decisions, "compile_seconds": done.compile_seconds,
-            "train_seconds": done.seconds, "decisions_per_s": decisions * len(runs) / max(done.seconds, 1e-9)}
+    return {"runs": len(runs), "groups": len(groups), "decisions_per_run": decisions,
+            "compile_seconds": compile_seconds, "train_seconds": seconds,
+            "decisions_per_s": decisions * len(runs) / max(seconds, 1e-9)}
 
 
 def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str):
@@ -208,10 +252,14 @@ def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, p
     (an older one would be a less trained team: no fallback here)."""
     cfg = config_of(scale, protocol)  # the senses fix the network's shapes
     trainer = make_trainer(cfg, redraw_ranges=True)
-    abstract = jax.eval_shape(jax.vmap(trainer.init), *_run_inputs(runs, base_seed))
-    final = rf.path("checkpoints", "mapoca", str(cfg.num_chunks * cfg.updates_per_chunk))
-    runner, _, _ = checkpoint.restore(final, abstract)
-    return trainer.actor, runner.params["actor"], cfg.senses
+    weights = []
+    for g, idx in enumerate(groups_of(len(runs), scale.runs_per_program)):
+        members = [runs[i] for i in idx]
+        abstract = jax.eval_shape(jax.vmap(trainer.init), *_run_inputs(members, base_seed, idx[0]))
+        final = rf.path("checkpoints", "mapoca", f"group{g}", str(cfg.num_chunks * cfg.updates_per_chunk))
+        runner, _, _ = checkpoint.restore(final, abstract)
+        weights.append(runner.params["actor"])
+    return trainer.actor, jax.tree.map(lambda *w: jnp.concatenate(w), *weights), cfg.senses
 
 
 def per_team(key, actor, weights, contents, measure, senses: str = "raidjax") -> jax.Array:

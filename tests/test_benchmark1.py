@@ -22,7 +22,8 @@ def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("b1") / "run"
     first = benchmark1.main(["--scale", "smoke", "--out", str(out), "--max-chunks", "1"])  # interrupted
     state_after_interrupt = {"train_done": (out / "stages" / "train.json").exists(),
-                             "checkpoints": sorted(p.name for p in (out / "checkpoints" / "mapoca").iterdir()
+                             "groups": sorted(p.name for p in (out / "checkpoints" / "mapoca").iterdir()),
+                             "checkpoints": sorted(p.name for p in (out / "checkpoints" / "mapoca" / "group0").iterdir()
                                                    if p.name.isdigit())}
     summary = benchmark1.main(["--scale", "smoke", "--out", str(out), "--resume"])  # resumes and finishes
     return out, first, state_after_interrupt, summary
@@ -31,12 +32,19 @@ def run(tmp_path_factory):
 def test_interrupted_run_resumes_mid_training(run):
     out, first, after, summary = run
     assert first == {"interrupted": True}
-    assert not after["train_done"] and after["checkpoints"] == ["1"]  # chunk 1 of 2 checkpointed
+    # The 16 smoke runs train in two groups of 8 (Scale.runs_per_program), one after the other; the
+    # interruption came after chunk 1 of 2 of the first group, checkpointed.
+    assert not after["train_done"] and after["groups"] == ["group0"] and after["checkpoints"] == ["1"]
     log = (out / "log.txt").read_text()
-    assert "resumed from the checkpoint at update 1/2" in log
-    chunks = [json.loads(s)["chunk"] for s in (out / "train" / "metrics.jsonl").read_text().splitlines()]
-    assert chunks == [0, 1]  # one row per chunk, none lost or repeated across the interruption
-    assert summary["train"]["decisions_per_run"] == 256
+    assert "train group 0: resumed from the checkpoint at update 1/2" in log
+    for g in (0, 1):
+        rows = (out / "train" / f"metrics_group{g}.jsonl").read_text().splitlines()
+        assert [json.loads(s)["chunk"] for s in rows] == [0, 1]  # one row per chunk, none lost or repeated
+    merged = _rows(out / "train" / "metrics.csv")  # the groups side by side, every run's column
+    runs = benchmark1.runs_of(benchmark1.SCALES["smoke"])
+    assert len(merged) == 2 and {f"win/{r['name']}/{r['seed']}" for r in runs} <= set(merged[0])
+    assert summary["train"]["decisions_per_run"] == 256 and summary["train"]["groups"] == 2
+    assert [list(g) for g in benchmark1.groups_of(10, 4)] == [[0, 1, 2, 3], [4, 5, 6, 7], [8, 9]]
 
 
 def test_run_folder_contents(run):

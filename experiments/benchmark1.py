@@ -4,7 +4,8 @@
 
 The MA-POCA runs train side by side in vmapped, jitted programs of ``Scale.runs_per_program`` runs
 (8), one group after another: each run is a row with its own seed, content and set of skill ranges
-(``trainers.curriculum.range_table``), so groups of one size share one compiled program. The runs (``R`` = seeds, ``Q`` = population size):
+(``trainers.curriculum.range_table``), so groups of one size share one compiled program. The runs
+(``R`` = seeds, ``Q`` = population size):
 
 - ``table/r{5,9,13,17}`` x R: the win-rate table's MA-POCA, reference content at one range;
 - ``robust/MA-POCA{1..4}`` x R: ranges drawn (see the protocols) from {5}, {5,9}, {5,9,13}, {5,9,13,17};

@@ -43,7 +43,7 @@ from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli
 from trainers import checkpoint, loop
 from trainers.config import PRESETS, Config, PPOConfig
 from trainers.curriculum import range_table
-from trainers.generate import generate_episodes, target_groups
+from trainers.generate import PPOGenerator, generate_episodes, target_groups
 from trainers.mapoca import load_policy, make_trainer
 from trainers.runfolder import RunFolder, add_run_arguments
 from trainers.runs import mapoca_learner, run_mapoca, run_ppo_pcgrl
@@ -246,9 +246,10 @@ def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
         config = PPOConfig.from_dict(config)
         groups = jax.tree.leaves(w)[0].shape[0]  # seeds, or seeds x targets when the target is not observed
         _, labels = target_groups(config, groups if config.observe_target else groups // len(pcg.quality.TARGETS))
-        gens = generate_episodes(jax.random.PRNGKey(seed + 200 + g), config, w, labels, gen_games=scale.gen_games,
-                        greedy=False, episodes=scale.episodes, eval_games=0, baselines=False,
-                        max_edits=scale.max_edits, tester=teams[name][0], tester_weights=teams[name][1])["PPO"]
+        gens = generate_episodes(jax.random.PRNGKey(seed + 200 + g), {"PPO": PPOGenerator(config, w, labels)},
+                                 gen_games=scale.gen_games, greedy=False, episodes=scale.episodes, eval_games=0,
+                                 baselines=False, max_edits=scale.max_edits, tester=teams[name][0],
+                                 tester_weights=teams[name][1])["PPO"]
         n = len(gens["target"])
         out["generator"].append(np.full(n, g))
         for k in ("target", "skill", "gen_win_rate", "edits", "reached"):

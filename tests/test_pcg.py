@@ -152,8 +152,15 @@ def test_side_by_side_measurements_are_one_playtest_of_each_episode_s_own_games(
     singles = []
     monkeypatch.setattr(pcg.env, "playtest", lambda *a, **k: singles.append(1) or raidjax.playtest(*a, **k))
     traced = jax.jit(jax.vmap(lambda k, s: pcg.play_outcomes(k, p.game, s, 8))).trace(keys, skills)
-    assert "playtest_groups" in str(traced.jaxpr) and not singles
-    np.testing.assert_array_equal(traced.lower().compile(OPTIMIZED)(keys, skills), alone)
+    lowered = traced.lower()
+    assert "_playtest_groups" in lowered.as_text() and not singles
+    np.testing.assert_array_equal(lowered.compile(OPTIMIZED)(keys, skills), alone)
+    # Nested (several learners, each with its episodes): the outer axis joins the groups of the one
+    # playtest, the same games again.
+    nested = optimized(jax.vmap(jax.vmap(lambda k, s: pcg.play_outcomes(k, p.game, s, 8))), keys.reshape(3, 1),
+                       skills.reshape(3, 1, 4))
+    np.testing.assert_array_equal(np.asarray(nested).reshape(3, 8), alone)
+    assert not singles
     games = jax.tree.map(lambda x: jnp.stack([x] * 3), p.game)
     per_game = optimized(jax.vmap(lambda k, g, s: pcg.play_outcomes(k, g, s, 8)), keys, games, skills)
     np.testing.assert_array_equal(per_game, alone)

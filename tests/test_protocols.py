@@ -42,8 +42,8 @@ def test_paper_preset_mirrors_the_reference_yaml():
     assert p.redraw_every == 2
     # max_steps 5e7 agent steps = ceil(5e7 / 3) decisions with 3 players alive
     assert p.total_steps == 16_666_667 and 3 * (p.total_steps - 1) < 50_000_000 <= 3 * p.total_steps
-    cpu = PRESETS["mapoca"]["cpu"]  # raidjax's own choices stay on the other presets
-    assert (cpu.anneal_lr, cpu.max_grad_norm, cpu.adam_eps) == (True, 0.5, 1e-5)
+    cpu = PRESETS["mapoca"]["cpu"]  # raidjax's own choices stay on the other presets (the issue-51 sweep's)
+    assert (cpu.max_grad_norm, cpu.adam_eps, cpu.ent_coef) == (0.5, 1e-5, 0.003)
 
 
 # --- range redraw cadence ------------------------------------------------------------------
@@ -182,27 +182,38 @@ def test_paper_generation_arguments():
 
 
 def test_greedy_generation_takes_the_argmax_of_each_branch():
+    """Two PPO runs in one generation call: a target-blind one (the paper's) with two networks,
+    and a target-observing one; each episode's method and network pick its action."""
     hidden = (4,)
-    policy = method_policy(hidden, greedy=True)
-    net = pcg_net_params(hidden)
-    bias = np.zeros((pcg.env.N_PARAMS, pcg.env.N_CHOICES), np.float32)
-    bias[0, 4], bias[1, 0], bias[2, 2], bias[3, 1] = 1.0, 1.0, 1.0, 1.0  # argmax (4, 0, 2, 1)
-    net["params"]["pi"]["bias"] = jnp.asarray(bias.reshape(-1))
-    params = pcg.make_pcg_params(target=0.3, observe_target=False, n_games=1)
+    policy = method_policy(((hidden, False), (hidden, True)), greedy=True)
+    blind, seeing = pcg_net_params(hidden, 4), pcg_net_params(hidden, 6)
+
+    def with_argmax(net, best):
+        bias = np.zeros((pcg.env.N_PARAMS, pcg.env.N_CHOICES), np.float32)
+        bias[np.arange(4), best] = 1.0
+        net["params"]["pi"]["bias"] = jnp.asarray(bias.reshape(-1))
+        return net
+
+    second = with_argmax(pcg_net_params(hidden, 4), [0, 0, 0, 0])
+    nets = (jax.tree.map(lambda *x: jnp.stack(x), with_argmax(blind, [4, 0, 2, 1]), second),
+            jax.tree.map(lambda x: x[None], with_argmax(seeing, [1, 1, 3, 3])))
+    params = pcg.make_pcg_params(target=0.3, observe_target=True, n_games=1)  # the call's environment observes
     obs = jnp.zeros(pcg.env.obs_size(params))
     skill = jnp.asarray(pcg.PAPER_SPACE.low)
     state = pcg.env._started(skill, jnp.float32(0.3), jnp.float32(0.5), skill, params)
-    act = jax.jit(jax.vmap(policy, in_axes=(None, 0, None, None, None)))  # one program for the 20 keys
-    acts = {tuple(a) for a in np.asarray(act({"net": net, "method": jnp.int32(0)},
-                                             jax.random.split(jax.random.PRNGKey(0), 20), obs, state, params))}
-    assert acts == {(4, 0, 2, 1)}  # every key: no sampling
+    act = jax.jit(jax.vmap(policy, in_axes=((None, 0), 0, None, None, None)))  # one program for the episodes
+    episodes = {"method": jnp.array([0, 0, 1] * 5), "group": jnp.array([0, 1, 0] * 5)}
+    acts = np.asarray(act((nets, episodes), jax.random.split(jax.random.PRNGKey(0), 15), obs, state, params))
+    assert {tuple(a) for a in acts[0::3]} == {(4, 0, 2, 1)}  # every key: no sampling
+    assert {tuple(a) for a in acts[1::3]} == {(0, 0, 0, 0)}  # the run's second network
+    assert {tuple(a) for a in acts[2::3]} == {(1, 1, 3, 3)}  # the other run
 
 
-def pcg_net_params(hidden):
+def pcg_net_params(hidden, obs_size=4):
     """ActorCritic weights with every kernel and bias zero (logits = the ``pi`` bias)."""
     from trainers.ppo_pcgrl import ActorCritic
 
-    p = ActorCritic(hidden).init(jax.random.PRNGKey(0), jnp.zeros(4))
+    p = ActorCritic(hidden).init(jax.random.PRNGKey(0), jnp.zeros(obs_size))
     return jax.tree.map(jnp.zeros_like, jax.device_get(p))
 
 

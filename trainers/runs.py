@@ -29,7 +29,7 @@ from raidjax.io import atomic_write, finite_json, machine
 from raidjax.playtest import auto_games_per_arena
 from trainers import checkpoint
 from trainers.config import Config, PPOConfig
-from trainers.generate import generate_episodes, target_groups
+from trainers.generate import PPOGenerator, generate_episodes, target_groups
 from trainers.loop import Learner, over_runs, train
 from trainers.mapoca import load_policy, make_trainer, summarize
 from trainers.metrics import update_rows
@@ -281,9 +281,9 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
            "total_steps": config.num_updates * config.n_arenas * config.n_steps, "groups": len(labels),
            "n_games": config.n_games, "cpu_count": os.cpu_count()}
     if ev["eval_episodes"] > 0:
-        gens = generate_episodes(jax.random.key(seed + 1), config, done.state["params"], labels,
-                        gen_games=ev["eval_gen_games"], greedy=ev["greedy"], episodes=ev["eval_episodes"],
-                        eval_games=ev["eval_games"], baselines=not ev["no_baselines"], **team)
+        gens = generate_episodes(jax.random.key(seed + 1), {"PPO": PPOGenerator(config, done.state["params"], labels)},
+                                 gen_games=ev["eval_gen_games"], greedy=ev["greedy"], episodes=ev["eval_episodes"],
+                                 eval_games=ev["eval_games"], baselines=not ev["no_baselines"], **team)
         summ = pcg.quality.summarize(gens)
         atomic_write(rf.out / "eval.json", finite_json(summ, indent=1))
         for name, s in summ.items():

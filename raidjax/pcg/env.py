@@ -265,12 +265,40 @@ def _outcomes(tester: Callable, n_games: int, space: Space):
         keys = key if k_b else jnp.broadcast_to(key, (axis_size,) + key.shape)
         skills = skill if s_b else jnp.broadcast_to(skill, (axis_size,) + skill.shape)
         contents = jax.vmap(lambda sk: skill_params(game, sk, space))(skills)
-        results = playtest_groups(keys, contents, tester, n_games, gpa, weights)
-        return results["outcome"] == WIN
+        return _grouped_wins(tester, n_games, gpa)(keys, contents, weights)
 
     # One playtest is traced only where it runs unbatched (lanes.with_vmap_rule; custom_vmap would
     # trace it at every call, and a generator's measurements always run vmapped).
     return lanes.with_vmap_rule(one, rule, lambda *_: jax.ShapeDtypeStruct((n_games,), jnp.bool_))
+
+
+@functools.cache
+def _grouped_wins(tester: Callable, n_games: int, games_per_arena: int):
+    """``f(keys [G], contents [G, ...], weights) -> bool[G, n_games]``: the wins of ``G``
+    measurements in one ``playtest_groups``. Under a further ``vmap`` (several learners, each with
+    its generator episodes: PPO-PCGRL's runs or one model per target) the outer axis joins the
+    groups, so every measurement of every learner is one playtest again, the same games bit for bit;
+    with testers' weights per learner it is vmapped as it is."""
+
+    def grouped(keys, contents, weights):
+        return playtest_groups(keys, contents, tester, n_games, games_per_arena, weights)["outcome"] == WIN
+
+    def rule(axis_size, in_batched, keys, contents, weights):
+        k_b, c_b, w_b = in_batched
+        if any(jax.tree.leaves(w_b)):
+            axes = [jax.tree.map(lambda b: 0 if b else None, b) for b in in_batched]
+            return jax.vmap(grouped, in_axes=axes)(keys, contents, weights)
+        full = lambda x, b: x if b else jnp.broadcast_to(x, (axis_size,) + x.shape)  # noqa: E731
+        keys = full(keys, k_b)
+        contents = jax.tree.map(full, contents, c_b)
+        g = keys.shape[1]
+        flat = lambda x: x.reshape((axis_size * g,) + x.shape[2:])  # noqa: E731
+        wins = wrapped(flat(keys), jax.tree.map(flat, contents), weights)
+        return wins.reshape(axis_size, g, n_games)
+
+    wrapped = lanes.with_vmap_rule(grouped, rule, lambda keys, *_: jax.ShapeDtypeStruct(
+        (keys.shape[0], n_games), jnp.bool_))
+    return wrapped
 
 
 def measure(key: jax.Array, params: PCGParams, skill: jax.Array, n_games: int | None = None) -> jax.Array:

@@ -75,7 +75,8 @@ PROTOCOLS = {
 
 
 @partial(jax.jit, static_argnames=("policy", "episodes", "eval_games"))
-def _generate(key, policy, policy_params, params: env.PCGParams, targets, episodes: int, eval_games: int):
+def _generate(key, policy, policy_params, params: env.PCGParams, targets, episodes: int, eval_games: int,
+              episode_params=None):
     # Every generation measurement, the start's included, is played by the loop's one playtest, so
     # the program holds the game once (twice with the re-measurement) and compiles in half the
     # time. Iteration 0 measures the start skills with reset's keys (``env.unmeasured_reset``);
@@ -92,7 +93,11 @@ def _generate(key, policy, policy_params, params: env.PCGParams, targets, episod
         first = i == 0
         ks = jax.random.split(jax.random.fold_in(k_loop, i - 1), 2 * n)  # raw or typed keys
         ks = (ks[:n], ks[n:])
-        act = jax.vmap(lambda k, o, s: policy(policy_params, k, o, s, params))(ks[0], obs, state)
+        if episode_params is None:
+            act = jax.vmap(lambda k, o, s: policy(policy_params, k, o, s, params))(ks[0], obs, state)
+        else:
+            act = jax.vmap(lambda k, o, s, e: policy((policy_params, e), k, o, s, params))(ks[0], obs, state,
+                                                                                        episode_params)
         edited = jax.vmap(lambda s, a: env.apply_action(s.skill, a, params.space))(state, act)
         skill = jnp.where(first, state.skill, edited)
         w = jax.vmap(lambda k, sk: env.measure(k, params, sk))(jnp.where(first, k_start, ks[1]), skill)
@@ -116,16 +121,22 @@ def _generate(key, policy, policy_params, params: env.PCGParams, targets, episod
 
 
 def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=None, targets=TARGETS,
-             episodes: int = 10, eval_games: int = 300) -> dict[str, np.ndarray]:
-    """Run a generator for ``episodes`` episodes per target, in parallel.
+             episodes: int = 10, eval_games: int = 300, episode_params=None) -> dict[str, np.ndarray]:
+    """Run a generator for ``episodes`` episodes per target, all episodes side by side: every
+    measurement of the ``n = T * E`` episodes is one playtest of ``n * params.n_games`` games.
 
     Args:
         key: PRNG key.
-        policy: ``policy(policy_params, key, obs, state, params) -> int32[4]`` (hashable).
+        policy: ``policy(policy_params, key, obs, state, params) -> int32[K]`` (hashable); with
+            ``episode_params``, ``policy((policy_params, episode_params[i]), key, obs, state, params)``
+            for episode ``i``.
         params: ``PCGParams`` (its ``n_games`` is the generator's per-edit measurement).
         policy_params: pytree passed to ``policy`` (network weights; ``None`` for baselines).
-        targets: target win rates (T of them).
+        targets: target win rates (T of them; repeats allowed, so several generators' episodes can
+            run in one call).
         episodes: E, episodes per target.
+        episode_params: ``None``, or a pytree whose leaves lead with ``n`` (episode ``i``'s values,
+            episodes ordered target by target): which generator and network each episode runs.
         eval_games: games re-measuring each final skill (300); 0 keeps the generator's own last
             measurement (``params.n_games`` games), so ``win_rate == gen_win_rate``.
 
@@ -135,7 +146,8 @@ def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=Non
         last measurement), ``edits`` [n], ``reached`` [n] (the band was reached) and ``goal`` [n, 4] (its style
         goal; the start skill unless ``params.goal_axis``).
     """
-    out = _generate(key, policy, policy_params, params, jnp.asarray(targets, jnp.float32), episodes, eval_games)
+    out = _generate(key, policy, policy_params, params, jnp.asarray(targets, jnp.float32), episodes, eval_games,
+                    episode_params)
     return {k: np.asarray(v) for k, v in jax.device_get(out).items()}
 
 

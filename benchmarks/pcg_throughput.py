@@ -5,6 +5,8 @@ machine, the batch of parallel generator episodes, N, compile seconds, generator
 implied games/s. Uses ``raidjax.pcg.step_autoreset`` (exactly one playtest per step) under vmap.
 
     python benchmarks/pcg_throughput.py --envs 8 --n-games 100 --steps 2
+    python benchmarks/pcg_throughput.py --generation 10 --decisions 4 --n-games 300   # Benchmark 2's generation
+    python benchmarks/pcg_throughput.py --train paper --steps 2                      # its paper PPO's training
 """
 
 from __future__ import annotations
@@ -38,6 +40,71 @@ def make_rollout(params: pcg.PCGParams, n_steps: int):
     return rollout
 
 
+def generation(episodes: int, decisions: int, n_games: int) -> dict:
+    """Benchmark 2's generation as its ``cpu`` scale runs it (``trainers.generate.generate_episodes``):
+    raidjax's PPO, the paper's PPO (7 models; untrained networks: their edits, not their weights,
+    set the games) and PCG-HR and PCG-RD, ``episodes`` per target and method side by side, strict
+    episodes of ``decisions`` measurements of ``n_games`` PT-HR games. Times one call after a warm-up
+    (compile excluded)."""
+    from trainers.config import load_config
+    from trainers.generate import PPOGenerator, generate_episodes, target_groups
+    from trainers.ppo_pcgrl import make_train
+
+    gens = {}
+    for name, preset in (("PPO, target observed", "cpu"), ("PPO", "paper")):
+        cfg = load_config(preset, learner="ppo_pcgrl")
+        pairs, labels = target_groups(cfg, 1)
+        train = make_train(cfg)
+        weights = jax.vmap(lambda k, t, train=train: train.init(k, t)["params"])(
+            jax.random.split(jax.random.key(0), len(labels)), jax.numpy.asarray(pairs))
+        gens[name] = PPOGenerator(cfg, weights, labels)
+    kw = dict(gen_games=n_games, greedy=True, episodes=episodes, eval_games=0, strict_length=True,
+              max_edits=decisions - 1)
+    t0 = time.perf_counter()
+    generate_episodes(jax.random.key(1), gens, **kw)  # compiles, then plays
+    first = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    out = generate_episodes(jax.random.key(2), gens, **kw)
+    seconds = time.perf_counter() - t0
+    n_episodes = sum(len(g["target"]) for g in out.values())
+    games = n_episodes * decisions * n_games
+    return {"benchmark": "pcg_generation", "machine": machine(load=True), "methods": list(out),
+            "episodes_per_target_and_method": episodes, "episodes": n_episodes, "decisions": decisions,
+            "n_games": n_games, "games_per_measurement": n_episodes * n_games, "first_call_s": round(first, 2),
+            "seconds": round(seconds, 2), "games_per_s": round(games / seconds, 1)}
+
+
+def training(preset: str, updates: int) -> dict:
+    """One PPO-PCGRL learner of Benchmark 2 (``preset``: ``cpu``, one model, or ``paper``, 7 models
+    vmapped, one per target), ``updates`` updates timed after a warm-up update (compile excluded):
+    the games/s of its training measurements (the networks' updates included)."""
+    from trainers.config import load_config
+    from trainers.generate import target_groups
+    from trainers.loop import over_runs
+    from trainers.ppo_pcgrl import make_train
+
+    cfg = load_config(preset, learner="ppo_pcgrl")
+    pairs, labels = target_groups(cfg, 1)
+    train = make_train(cfg)
+    targets = jax.numpy.asarray(pairs)
+    init = jax.jit(over_runs(train.init, len(labels)))
+    state = init(jax.random.split(jax.random.key(0), len(labels)), targets)
+    run = jax.jit(over_runs(lambda r, t: jax.lax.scan(lambda rr, _: train.update(rr, t), r, None, updates),
+                            len(labels)))
+    t0 = time.perf_counter()
+    compiled = run.lower(state, targets).compile()
+    compile_s = time.perf_counter() - t0
+    state, _ = jax.block_until_ready(compiled(state, targets))  # warm-up (its first steps reset the episodes)
+    t0 = time.perf_counter()
+    jax.block_until_ready(compiled(state, targets))
+    seconds = time.perf_counter() - t0
+    games = len(labels) * updates * cfg.n_arenas * cfg.n_steps * cfg.n_games
+    return {"benchmark": "pcg_training", "machine": machine(load=True), "preset": preset, "models": len(labels),
+            "episodes_side_by_side": len(labels) * cfg.n_arenas, "n_games": cfg.n_games,
+            "games_per_measurement": len(labels) * cfg.n_arenas * cfg.n_games, "updates": updates,
+            "compile_s": round(compile_s, 2), "seconds": round(seconds, 2), "games_per_s": round(games / seconds, 1)}
+
+
 def main() -> None:
     """Run the benchmark and print one JSON line."""
     use_recommended_xla_flags()  # raidjax's commands measure with these (raidjax.xla_flags)
@@ -46,7 +113,19 @@ def main() -> None:
     ap.add_argument("--n-games", type=int, default=100)
     ap.add_argument("--steps", type=int, default=2, help="generator steps per timed call")
     ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--generation", type=int, metavar="EPISODES",
+                    help="instead: Benchmark 2's generation, EPISODES per target and method side by side, with "
+                    "--decisions measurements of --n-games games each")
+    ap.add_argument("--decisions", type=int, default=4, help="measurements per generation episode (--generation)")
+    ap.add_argument("--train", choices=("cpu", "paper"), help="instead: one PPO-PCGRL learner of Benchmark 2, "
+                    "--steps updates timed")
     args = ap.parse_args()
+    if args.generation:
+        print(json.dumps(generation(args.generation, args.decisions, args.n_games)))
+        return
+    if args.train:
+        print(json.dumps(training(args.train, args.steps)))
+        return
 
     params = pcg.make_pcg_params(n_games=args.n_games)
     _, states = jax.jit(jax.vmap(lambda k: pcg.reset(k, params)))(jax.random.split(jax.random.key(0), args.envs))

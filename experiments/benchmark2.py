@@ -44,12 +44,18 @@ from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_
 from raidjax.pcg import quality as pm
 from trainers import checkpoint, loop
 from trainers.config import PPOConfig, load_config
-from trainers.generate import generate_episodes, target_groups
+from trainers.generate import BASELINES, PPOGenerator, generate_episodes, target_groups
 from trainers.runfolder import RunFolder, add_run_arguments
 from trainers.runs import ppo_learner
 
-METHODS = ("PPO", "PCG-HR", "PCG-RD")
+PPO_PAPER, PPO_OBSERVED = "PPO", "PPO, target observed"  # one model per target (the paper's) / one for all
 FIELDS = ("target", "skill", "win_rate", "gen_win_rate", "edits", "reached")
+
+
+def ppo_method(config: PPOConfig) -> str:
+    """The generation method a PPO config trains: the paper's way (one model per fixed target, the
+    target not observed) or raidjax's (one model for every target, observed)."""
+    return PPO_OBSERVED if config.observe_target else PPO_PAPER
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,6 +65,10 @@ class Scale:
     Attributes:
         preset: ``trainers.config.PRESETS["ppo_pcgrl"]`` key; ``ppo`` holds overrides of its fields.
         seeds: PPO training seeds (per fixed target when the preset does not observe the target).
+        paper_ppo: also train the paper's PPO (``paper`` preset: one model per fixed target, 20 000
+            steps, 100 games per measurement) with these overrides (``{}``: none) and generate with
+            both PPOs side by side; ``None``: the scale's PPO only.
+        paper_ppo_seeds: seeds per target of that paper PPO.
         chunk: PPO updates per jitted chunk (progress / checkpoint period).
         episodes: generation episodes per target and method (PPO: split evenly over seeds).
         parts: generation is done in this many saved parts (``episodes`` divisible by it).
@@ -82,29 +92,32 @@ class Scale:
     gen_games: int
     eval_games: int
     decisions: int | None = None
+    paper_ppo: dict | None = None
+    paper_ppo_seeds: int = 1
     tsne_per_target: int = 300
     fast_compile: bool = False
     bootstrap: int = 1000
 
 
 SCALES = {
-    # Seconds: a tiny learner, a few games per measurement, 4-decision paper-protocol episodes (used
+    # Seconds: tiny learners, a few games per measurement, 4-decision paper-protocol episodes (used
     # by the tests; its numbers mean nothing).
     "smoke": Scale(preset="cpu", ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2,
                                           hidden=16, layers=2, n_games=4, max_edits=6),
                    seeds=1, chunk=1, episodes=2, parts=1, gen_games=4, eval_games=4, decisions=4,
+                   paper_ppo=dict(n_arenas=2, n_steps=2, total_steps=4, update_epochs=1, n_minibatches=2, hidden=16,
+                                  layers=2, n_games=4, max_edits=6),
                    fast_compile=True, bootstrap=50),
-    # Sized for a 2-core CPU (the paper protocol: 40-decision episodes,
-    # 300-game measurements, greedy PPO): the cpu preset (one model for all targets, target observed;
-    # N = 50 games per training measurement) trained for 10 240 generator steps (paper: 20 000 per
-    # model, one model per target and seed), 3 episodes per target and method (paper: 5 000 skills per
-    # target, 300 kept), in 3 parts. Measured stages on that CPU (2026-11-26, RESULTS): training
-    # 1 h 24 min (~100 games/s: 32 episodes x 50 games are too few arenas to fill its vectors), a
-    # generation part (252 000 games) 27-36 min, so about 2 h 55 min in all, at the edge of the 3 h
-    # it is sized for; the results page's run used --episodes 6 (6 parts).
-    # Part i's key does not depend on the number of parts, so --episodes 6 extends a 3-episode run.
-    "cpu": Scale(preset="cpu", ppo=dict(total_steps=10240), seeds=1, chunk=5, episodes=3, parts=3,
-                 gen_games=100, eval_games=300),
+    # Sized for one run of at most 3 h on a 2-core CPU, the paper protocol unchanged (40-decision
+    # episodes, 300-game measurements, greedy PPO, the last measured skill): PPO both ways side by
+    # side, the paper's (one model per fixed target, 20 000 steps, N = 100 games per measurement,
+    # one seed) and raidjax's (the cpu preset: one model for all targets, target observed, N = 50,
+    # 10 240 steps), then 30 episodes per target and method (paper: 5 000 skills per target, 300
+    # kept) in 3 parts of 10, every method's episodes side by side (one part's measurement is
+    # 4 x 7 x 10 x 300 = 84 000 games). docs/results/benchmark2.md has the measured wall-clock.
+    # Part i's key does not depend on the number of parts, so --episodes 40 extends a 30-episode run.
+    "cpu": Scale(preset="cpu", ppo=dict(total_steps=10240), seeds=1, chunk=5, episodes=30, parts=3,
+                 gen_games=100, eval_games=300, paper_ppo={}),
     # The paper's budgets: one model per fixed (unobserved) target, 5 seeds, 20 000 steps, N = 100
     # in training and 300 in evaluation, 5 models x 1 000 skills per target (paper §5.3; PCG-HR and
     # PCG-RD as many), cut to 300 per (method, target) by the paper protocol's metrics.
@@ -122,6 +135,12 @@ SCALES = {
 def ppo_config(scale: Scale) -> PPOConfig:
     """The ``PPOConfig`` of a scale (its preset with the scale's overrides)."""
     return load_config(scale.preset, learner="ppo_pcgrl", **scale.ppo)
+
+
+def paper_ppo_config(scale: Scale) -> PPOConfig:
+    """The ``PPOConfig`` of the paper's PPO trained beside the scale's (``Scale.paper_ppo``; the
+    ``paper`` preset with those overrides)."""
+    return load_config("paper", learner="ppo_pcgrl", **(scale.paper_ppo or {}))
 
 
 def _parse(argv=None) -> argparse.Namespace:
@@ -155,17 +174,20 @@ def _parse(argv=None) -> argparse.Namespace:
 
 
 class _Learner:
-    """The PPO learner of a run: its config, groups, ``trainers.loop.Learner`` and checkpoints folder."""
+    """A PPO learner of a run: its config, groups, ``trainers.loop.Learner``, checkpoints folder and
+    generation method. ``paper``: the paper's PPO trained beside the scale's (``Scale.paper_ppo``)."""
 
-    def __init__(self, run: RunFolder, scale: Scale, seed: int):
-        self.config = ppo_config(scale)
-        pairs, self.labels = target_groups(self.config, scale.seeds)
+    def __init__(self, run: RunFolder, scale: Scale, seed: int, paper: bool = False):
+        self.config = paper_ppo_config(scale) if paper else ppo_config(scale)
+        pairs, self.labels = target_groups(self.config, scale.paper_ppo_seeds if paper else scale.seeds)
         self.G = len(self.labels)
         self.steps_per_update = self.config.n_arenas * self.config.n_steps
-        keys = jax.random.split(jax.random.key(seed), self.G)
+        keys = jax.random.split(jax.random.key(seed + (7919 if paper else 0)), self.G)
         self.learner = ppo_learner(self.config, keys, jnp.asarray(pairs), scale.chunk,
                                    loop.compiler_options(scale.fast_compile))
-        self.ckpt = run.out / "checkpoints" / "ppo"
+        self.name = "ppo_paper" if paper else "ppo"
+        self.ckpt = run.out / "checkpoints" / self.name
+        self.method = ppo_method(self.config)
 
     def restore(self):
         """``(runner, update)`` of the latest checkpoint, or ``(None, 0)`` without checkpoints."""
@@ -174,16 +196,38 @@ class _Learner:
         runner, _, meta = checkpoint.restore(self.ckpt, self.learner.abstract_state(), quarantine=True)
         return runner, int(meta["update"])
 
+    def final_weights(self):
+        """The networks of the final checkpoint (an older one would be a less trained generator)."""
+        total = self.config.num_updates
+        if checkpoint.latest_step(self.ckpt) != total:
+            raise RuntimeError(f"no final PPO checkpoint (update {total}) in {self.ckpt}")
+        return checkpoint.load_policy_weights(self.ckpt / str(total))[0]
 
-def stage_train(run: RunFolder, scale: Scale, seed: int) -> dict:
-    """Train PPO with checkpoints (``trainers.loop``); resume from the latest one. Returns
-    ``train_seconds`` (cumulative over resumes, compiles excluded), ``steps`` (generator steps per
-    group), ``groups``, ``updates``, ``seconds``."""
-    lr = _Learner(run, scale, seed)
+
+def learners_of(run: RunFolder, scale: Scale, seed: int) -> list[_Learner]:
+    """The run's PPO learners: the scale's, and the paper's beside it when ``scale.paper_ppo`` is set."""
+    return [_Learner(run, scale, seed)] + ([_Learner(run, scale, seed, paper=True)] if scale.paper_ppo is not None
+                                           else [])
+
+
+def methods_of(scale: Scale) -> tuple[str, ...]:
+    """The generation methods of a scale's run, in the order of ``generated.npz``."""
+    methods = [ppo_method(ppo_config(scale))] + ([ppo_method(paper_ppo_config(scale))] if scale.paper_ppo is not None
+                                                 else [])
+    return (*methods, *BASELINES)
+
+
+def stage_train(run: RunFolder, scale: Scale, seed: int, paper: bool = False) -> dict:
+    """Train one PPO learner (``paper``: the paper's beside the scale's) with checkpoints
+    (``trainers.loop``); resume from the latest one. Returns ``train_seconds`` (cumulative over
+    resumes, compiles excluded), ``steps`` (generator steps per group), ``groups``, ``updates``,
+    ``seconds``."""
+    lr = _Learner(run, scale, seed, paper)
     total = lr.config.num_updates
-    run.log(f"train: preset {scale.preset}, {lr.G} group(s), {total} updates x {lr.steps_per_update} steps, "
+    run.log(f"{lr.name}: {lr.method}, {lr.G} group(s), {total} updates x {lr.steps_per_update} steps, "
             f"N = {lr.config.n_games} games per measurement")
-    done = loop.train(lr.learner, lr.ckpt, run.out / "train", log=lambda s: run.log(f"train: {s}"), max_to_keep=2)
+    done = loop.train(lr.learner, lr.ckpt, run.out / "train", metrics_name="metrics_paper" if paper else "metrics",
+                      log=lambda s: run.log(f"{lr.name}: {s}"), max_to_keep=2)
     return {"train_seconds": done.seconds, "steps": total * lr.steps_per_update, "groups": lr.G, "updates": total,
             "n_games": lr.config.n_games, "seconds": done.seconds}
 
@@ -237,8 +281,7 @@ def generation_kwargs(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: i
 
 
 # Wall-clock of a whole run per scale, as measured (docs/RESULTS.md); printed before a run starts.
-MEASURED_WALL = {"smoke": "a few minutes",
-                 "cpu": "about 2 h 55 min (2026-11-26: training 1 h 24 min, 27-36 min per generation part)"}
+MEASURED_WALL = {"smoke": "a few minutes"}
 
 
 def planned_games(scale: Scale, pr: pm.Protocol) -> tuple[int, int]:
@@ -247,37 +290,37 @@ def planned_games(scale: Scale, pr: pm.Protocol) -> tuple[int, int]:
     measurement and each measured edit (``pr.max_edits``) with its per-measurement games, plus the
     re-measurement of its kept skill (``raidjax`` protocol). Early stops (``raidjax``) play fewer."""
     cfg = ppo_config(scale)
-    groups = len(target_groups(cfg, scale.seeds)[1])
-    train = cfg.num_updates * cfg.n_arenas * cfg.n_steps * groups * cfg.n_games
+    runs = [(cfg, scale.seeds)] + ([(paper_ppo_config(scale), scale.paper_ppo_seeds)]
+                                   if scale.paper_ppo is not None else [])
+    train = sum(c.num_updates * c.n_arenas * c.n_steps * len(target_groups(c, s)[1]) * c.n_games for c, s in runs)
     kw = generation_kwargs(scale, pr, cfg.max_edits, scale.episodes)
     per_episode = (1 + kw["max_edits"]) * kw["gen_games"] + kw["eval_games"]
-    return train, len(METHODS) * len(pm.TARGETS) * scale.episodes * per_episode
+    return train, len(methods_of(scale)) * len(pm.TARGETS) * scale.episodes * per_episode
 
 
 def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "paper") -> dict:
-    """Generate with PPO (weights from the final checkpoint), PCG-HR and PCG-RD, in saved parts,
-    under ``protocol`` (``pm.PROTOCOLS`` key). Returns ``episodes`` per method, ``parts`` and ``seconds``."""
-    lr = _Learner(run, scale, seed)
-    total = lr.config.num_updates
-    if checkpoint.latest_step(lr.ckpt) != total:
-        raise RuntimeError(f"no final PPO checkpoint (update {total}) in {lr.ckpt}")
-    params, _ = checkpoint.load_policy_weights(lr.ckpt / str(total))  # the final one, no fallback
+    """Generate with every PPO learner of the run (weights from their final checkpoints), PCG-HR and
+    PCG-RD, every method's episodes side by side, in saved parts, under ``protocol``
+    (``pm.PROTOCOLS`` key). Returns ``episodes`` per method, ``parts`` and ``seconds``."""
+    lrs = learners_of(run, scale, seed)
+    generators = {lr.method: PPOGenerator(lr.config, lr.final_weights(), lr.labels) for lr in lrs}
     per_part = scale.episodes // scale.parts
-    kwargs = generation_kwargs(scale, protocol_of(scale, protocol), lr.config.max_edits, per_part)
+    kwargs = generation_kwargs(scale, protocol_of(scale, protocol), lrs[0].config.max_edits, per_part)
     t0, done_here, parts = time.perf_counter(), 0, []
     for i in range(scale.parts):
         path = run.path("gen_parts", f"part_{i:03d}.npz")
         if not path.exists():
             t = time.perf_counter()
             key = jax.random.fold_in(jax.random.key(seed + 1), i)
-            gens = generate_episodes(key, lr.config, params, lr.labels, **kwargs)
+            gens = generate_episodes(key, generators, **kwargs)
             save_generated(path, gens)
             done_here += 1
             eta = (time.perf_counter() - t0) / done_here * (scale.parts - i - 1)
-            run.log(f"generate: part {i + 1}/{scale.parts} ({per_part} episodes per target and method) in "
-                    f"{fmt_seconds(time.perf_counter() - t)}, ETA {fmt_seconds(eta)}")
+            run.log(f"generate: part {i + 1}/{scale.parts} ({per_part} episodes per target and method, "
+                    f"{len(gens)} methods side by side) in {fmt_seconds(time.perf_counter() - t)}, "
+                    f"ETA {fmt_seconds(eta)}")
         parts.append(load_generated(path))
-    gens = {m: {k: np.concatenate([p[m][k] for p in parts]) for k in FIELDS} for m in METHODS}
+    gens = {m: {k: np.concatenate([p[m][k] for p in parts]) for k in FIELDS} for m in parts[0]}
     save_generated(run.out / "generated.npz", gens)
     run.write_csv("generated", generated_rows(gens))
     errs = {m: float(np.mean(np.abs(g["target"] - g["win_rate"]))) for m, g in gens.items()}
@@ -316,7 +359,9 @@ def main(argv=None) -> dict:
     pr = protocol_of(scale, a.protocol)
     config = {"benchmark": 2, "scale": a.scale, "seed": a.seed, "protocol": dataclasses.asdict(pr),
               **dataclasses.asdict(scale),
-              "ppo_config": dataclasses.asdict(ppo_config(scale)), "targets": list(pm.TARGETS)}
+              "ppo_config": dataclasses.asdict(ppo_config(scale)), "targets": list(pm.TARGETS),
+              **({"paper_ppo_config": dataclasses.asdict(paper_ppo_config(scale))} if scale.paper_ppo is not None
+                 else {})}
     run = RunFolder(a.out, config, resume=a.resume, ignore=("bootstrap",))  # report-only: may change
     if run.finished:
         return run.already_finished()
@@ -325,6 +370,8 @@ def main(argv=None) -> dict:
             f"generation; a whole {a.scale} run took {MEASURED_WALL.get(a.scale, 'not yet measured')} "
             "on a 2-core CPU (docs/RESULTS.md); the training and generation lines give the ETA as they go")
     tr = run.stage("train", lambda: stage_train(run, scale, a.seed))
+    tr_paper = (run.stage("train_paper_ppo", lambda: stage_train(run, scale, a.seed, paper=True))
+                if scale.paper_ppo is not None else None)
     ge = run.stage("generate", lambda: stage_generate(run, scale, a.seed, a.protocol))
     rep = run.stage("report", lambda: b2_report.report(run, load_generated(run.out / "generated.npz"),
                                                           seed=a.seed, tsne_per_target=scale.tsne_per_target,
@@ -334,7 +381,10 @@ def main(argv=None) -> dict:
                                           "ci95")},
                "paper": b2_report.paper_summary(),
                "train_steps": tr["steps"], "train_groups": tr["groups"], "episodes": ge["episodes"],
-               "train_seconds": tr["seconds"], "generate_seconds": ge["seconds"]}
+               "train_seconds": tr["seconds"], "generate_seconds": ge["seconds"],
+               **({"paper_ppo_train_steps": tr_paper["steps"], "paper_ppo_train_groups": tr_paper["groups"],
+                   "paper_ppo_train_seconds": tr_paper["seconds"]} if tr_paper else {}),
+               "wall_seconds": sum(run.stage_seconds().values())}
     return run.finish(summary)
 
 

@@ -72,12 +72,12 @@ def main(argv=None) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 4, figsize=(15, 6.4))
-    for run in args.runs:
+    for i, run in enumerate(args.runs):
         m = read_metrics(run)
         steps = [s / 1e6 for s in m["env_steps"]]
         for ax, (col, _) in zip(axes.flat, PANELS, strict=True):
             if col in m:  # runs saved before a diagnostic existed leave its panel empty
-                ax.plot(steps, m[col], label=Path(run).name)
+                ax.plot(steps, m[col], label=Path(run).name, color=f"C{i % 10}", lw=1)  # one colour per run
     for ax, (col, ylabel) in zip(axes.flat, PANELS, strict=True):
         ax.set(xlabel="environment decisions (M)", ylabel=ylabel)
         if col == "win_rate":
@@ -89,7 +89,7 @@ def main(argv=None) -> None:
             ax.text(0.5, 0.5, "not recorded by these runs", ha="center", va="center", transform=ax.transAxes)
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format=Path(args.out).suffix.lstrip(".").lower(), dpi=110)
+    fig.savefig(buf, format=Path(args.out).suffix.lstrip(".").lower(), dpi=80)
     plt.close(fig)
     atomic_write(args.out, buf.getvalue())  # a reader never sees half a figure
 

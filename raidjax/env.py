@@ -219,7 +219,7 @@ def _advance(seeds, state: State, actions, params: Params):
         return (frozen.replace(projectiles=nxt.projectiles), to_boss + jnp.where(running, tb, 0.0),
                 back + jnp.where(running, bk, 0)), None
 
-    zeros = (jnp.zeros(state.hp.shape), jnp.zeros(state.hp.shape, jnp.int32))
+    zeros = (jnp.zeros_like(state.hp), jnp.zeros_like(state.hp, jnp.int32))  # shaped (and varying) as hp
     # A scan compiles the sub-step once, whatever n_substeps is.
     (new, to_boss, back), _ = jax.lax.scan(one_substep, (state, *zeros), (seeds, jnp.arange(seeds.shape[0])))
     return new, to_boss, back

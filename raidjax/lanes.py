@@ -32,7 +32,7 @@ import jax
 import jax.extend.core as jex_core
 import jax.numpy as jnp
 from jax.custom_batching import custom_vmap
-from jax.interpreters import batching, mlir
+from jax.interpreters import ad, batching, mlir
 
 
 def pick(x: jax.Array, idx: jax.Array) -> jax.Array:
@@ -161,8 +161,21 @@ _vmap_rule_p = jex_core.Primitive("with_vmap_rule")
 _vmap_rule_p.multiple_results = True
 _vmap_rule_p.def_impl(_unbatched)
 _vmap_rule_p.def_abstract_eval(lambda *_, call: call[4])
+def _jvp(primals, tangents, *, call):
+    """Forward-mode derivatives of ``fn`` itself (the rule only reorders the arenas' axes), so
+    ``jax.jvp`` and ``jax.grad`` go through a function with a vmap rule; integer inputs get zero
+    (``float0``) tangents."""
+    tangents = [ad.instantiate_zeros(t) for t in tangents]
+    _DIFFERENTIATED.append(True)  # batch_level: the plain program (custom_vmap has no reverse mode)
+    try:
+        return jax.jvp(lambda *flat: _unbatched(*flat, call=call), list(primals), tangents)
+    finally:
+        _DIFFERENTIATED.pop()
+
+
 mlir.register_lowering(_vmap_rule_p, mlir.lower_fun(_unbatched, multiple_results=True))
 batching.primitive_batchers[_vmap_rule_p] = _batched
+ad.primitive_jvps[_vmap_rule_p] = _jvp
 
 
 def fold(op, x: jax.Array, axis: int = 0) -> jax.Array:
@@ -196,6 +209,9 @@ def cumsum(x: jax.Array) -> jax.Array:
     return jnp.stack(out)
 
 
+# Whether a function with a vmap rule is being traced for its derivatives (``_jvp``).
+_DIFFERENTIATED: list = [False]
+
 # The gate of the sub-step being traced (see ``materialize``); None outside one.
 _GATE: list = [None]
 
@@ -211,6 +227,17 @@ def gate(pred: jax.Array):
         _GATE.pop()
 
 
+def _varying(tree) -> bool:
+    """Whether a leaf of ``tree`` varies along a ``shard_map``'s manual mesh axes: there a
+    conditional's branches must agree on it, which the scheduling conditionals below (a constant
+    branch) do not; they are skipped, leaving the same values."""
+    for x in jax.tree.leaves(tree):
+        t = jax.typeof(x)
+        if getattr(getattr(t, "manual_axis_type", None), "varying", None) or getattr(t, "vma", None):
+            return True
+    return False
+
+
 def materialize(tree, since=None):
     """``tree`` (a pytree of arrays) unchanged, computed once into memory before its consumers run.
 
@@ -223,7 +250,7 @@ def materialize(tree, since=None):
     ``since``: a pytree whose leaves are already in memory (the phase's input state); leaves of
     ``tree`` that are the very same arrays pass by the conditional, which would only copy them.
     """
-    if _GATE[-1] is None or jax.default_backend() != "cpu":
+    if _GATE[-1] is None or jax.default_backend() != "cpu" or _varying(tree):
         return tree
     leaves, treedef = jax.tree.flatten(tree)
     kept = {id(x) for x in jax.tree.leaves(since)}
@@ -249,8 +276,12 @@ def batch_level(fast, plain):
     """
     if jax.config.jax_disable_jit:
         return fast()
-    closed_fast, shapes = jax.make_jaxpr(fast, return_shape=True)()
+    if _DIFFERENTIATED[-1]:  # derivatives of the same values, through the program without conditionals
+        return plain()
     closed_plain = jax.make_jaxpr(plain)()
+    if _varying(closed_plain.consts):  # inside a shard_map: fast's conditionals' branches would disagree
+        return plain()
+    closed_fast, shapes = jax.make_jaxpr(fast, return_shape=True)()
     leaves, treedef = jax.tree.flatten(shapes)
     n_fast = len(closed_fast.consts)
 
@@ -279,7 +310,7 @@ def if_any(pred: jax.Array, fn):
     the lanes are the arenas, so one test covers the whole batch and the conditional skips the
     work. Under an outer ``vmap`` (``batch_level``) and off the CPU backend ``fn`` always runs.
     """
-    if jax.default_backend() != "cpu":
+    if jax.default_backend() != "cpu" or _varying(pred):
         return fn()
     closed, shapes = jax.make_jaxpr(fn, return_shape=True)()  # traced once: both programs run its jaxpr
     run = jex_core.jaxpr_as_fun(closed)
@@ -301,6 +332,8 @@ def computed(fn):
     if _GATE[-1] is None or jax.default_backend() != "cpu":
         return fn()
     closed, shapes = jax.make_jaxpr(fn, return_shape=True)()
+    if _varying(closed.consts):
+        return jax.tree.unflatten(jax.tree.structure(shapes), jex_core.jaxpr_as_fun(closed)())
     jaxpr = closed.jaxpr
     const_at = {v: i for i, v in enumerate(jaxpr.constvars)}
     out_shapes, treedef = jax.tree.flatten(shapes)

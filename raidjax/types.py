@@ -343,16 +343,17 @@ class Observation:
     alive: jax.Array  # bool[P]
 
     def flat(self) -> jax.Array:
-        """Flat vector view for MLP policies: ``float32[P, D]`` (masks included as 0/1)."""
+        """Flat vector view for MLP policies: ``float32[..., P, D]`` (masks included as 0/1), for one
+        arena's observation or a batch of them (any leading axes)."""
         import jax.numpy as jnp
 
-        p = self.self_features.shape[0]
+        lead = self.alive.shape  # [..., P]
         parts = [
             self.self_features,
             self.boss,
-            self.teammates.reshape(p, -1),
+            self.teammates.reshape(*lead, -1),
             self.teammate_mask.astype(jnp.float32),
-            self.projectiles.reshape(p, -1),
+            self.projectiles.reshape(*lead, -1),
             self.projectile_mask.astype(jnp.float32),
             self.walls,
             self.action_mask.astype(jnp.float32),

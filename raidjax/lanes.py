@@ -167,6 +167,11 @@ def _jvp(primals, tangents, *, call):
     (``float0``) tangents."""
     tangents = [ad.instantiate_zeros(t) for t in tangents]
     _DIFFERENTIATED.append(True)  # batch_level: the plain program (custom_vmap has no reverse mode)
+    # ``fn`` itself, not its ``jax.jit`` (``batched``'s ``traced``): jit keeps one trace per argument
+    # shapes, and a forward trace made earlier in the process holds the scheduling conditionals,
+    # which have no reverse mode.
+    fn, *rest = call
+    call = (getattr(fn, "__wrapped__", fn), *rest)
     try:
         return jax.jvp(lambda *flat: _unbatched(*flat, call=call), list(primals), tangents)
     finally:

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Every CPU speed table of docs/RESULTS.md ("Speed") in one job, each row appended to
+# Every CPU speed table of docs/results/speed.md in one job, each row appended to
 # OUT/cpu_speed.jsonl as it is printed (one object per benchmark, each with its machine, date,
 # commit and load average; vs_smax's per-environment progress lines are left out):
 # raidjax beside SMAX-3m at 4 096 arenas with 5 and 1 sub-steps (vs_smax.py), the rollout with

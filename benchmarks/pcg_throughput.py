@@ -7,6 +7,10 @@ implied games/s. Uses ``raidjax.pcg.step_autoreset`` (exactly one playtest per s
     python benchmarks/pcg_throughput.py --envs 8 --n-games 100 --steps 2
     python benchmarks/pcg_throughput.py --generation 10 --decisions 4 --n-games 300   # Benchmark 2's generation
     python benchmarks/pcg_throughput.py --train paper --steps 2                      # its paper PPO's training
+
+``--beside-playtest`` also times a PT-HR playtest (``raidjax.playtest``, reference content at range
+13, chained arenas) of as many games as one of the generator's measurements plays side by side, in
+the same process, and adds ``playtest_games_per_s`` and ``ratio_to_playtest`` to the line.
 """
 
 from __future__ import annotations
@@ -105,6 +109,28 @@ def training(preset: str, updates: int) -> dict:
             "compile_s": round(compile_s, 2), "seconds": round(seconds, 2), "games_per_s": round(games / seconds, 1)}
 
 
+def playtest_beside(games: int, repeats: int) -> float:
+    """games/s of a PT-HR playtest of ``games`` games (reference content, range 13, raidjax's one
+    protocol: chained arenas after a warm-up), compiled first, best of ``repeats``."""
+    import raidjax
+
+    params = raidjax.make_params(skill_range=13.0)
+    play = lambda k: raidjax.playtest(k, params, raidjax.policies.heuristic, games)["outcome"]
+    jax.block_until_ready(play(jax.random.key(0)))  # compiles
+    times = []
+    for i in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(play(jax.random.key(1 + i)))
+        times.append(time.perf_counter() - t0)
+    return games / min(times)
+
+
+def _beside(row: dict, games: int, repeats: int) -> dict:
+    rate = playtest_beside(games, repeats)
+    return {**row, "playtest_games": games, "playtest_games_per_s": round(rate, 1),
+            "ratio_to_playtest": round(row["games_per_s"] / rate, 3)}
+
+
 def main() -> None:
     """Run the benchmark and print one JSON line."""
     use_recommended_xla_flags()  # raidjax's commands measure with these (raidjax.xla_flags)
@@ -119,12 +145,16 @@ def main() -> None:
     ap.add_argument("--decisions", type=int, default=4, help="measurements per generation episode (--generation)")
     ap.add_argument("--train", choices=("cpu", "paper"), help="instead: one PPO-PCGRL learner of Benchmark 2, "
                     "--steps updates timed")
+    ap.add_argument("--beside-playtest", action="store_true",
+                    help="also time a PT-HR playtest of as many games as one measurement plays side by side")
     args = ap.parse_args()
+    row = None
     if args.generation:
-        print(json.dumps(generation(args.generation, args.decisions, args.n_games)))
-        return
-    if args.train:
-        print(json.dumps(training(args.train, args.steps)))
+        row = generation(args.generation, args.decisions, args.n_games)
+    elif args.train:
+        row = training(args.train, args.steps)
+    if row is not None:
+        print(json.dumps(_beside(row, row["games_per_measurement"], args.repeats) if args.beside_playtest else row))
         return
 
     params = pcg.make_pcg_params(n_games=args.n_games)
@@ -142,12 +172,13 @@ def main() -> None:
         times.append(time.perf_counter() - t0)
     best = min(times)
     steps = args.envs * args.steps
-    print(json.dumps({
+    row = {
         "benchmark": "pcg_throughput", "machine": machine(load=True), "envs": args.envs, "n_games": args.n_games,
         "steps_per_call": steps, "compile_s": round(compile_s, 2), "best_s": round(best, 3),
         "generator_steps_per_s": round(steps / best, 2), "games_per_s": round(steps * args.n_games / best, 1),
         "times_s": [round(t, 3) for t in times],
-    }))
+    }
+    print(json.dumps(_beside(row, args.envs * args.n_games, args.repeats) if args.beside_playtest else row))
 
 
 if __name__ == "__main__":

@@ -280,7 +280,7 @@ def generation_kwargs(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: i
                 strict_length=pr.strict_length, max_edits=pr.max_edits(max_edits))
 
 
-# Wall-clock of a whole run per scale, as measured (docs/RESULTS.md); printed before a run starts.
+# Wall-clock of a whole run per scale, as measured (docs/results/benchmark2.md); printed before a run starts.
 MEASURED_WALL = {"smoke": "a few minutes"}
 
 
@@ -368,7 +368,7 @@ def main(argv=None) -> dict:
     train_games, gen_games = planned_games(scale, pr)
     run.log(f"plan: scale {a.scale}, at most {train_games:,} PT-HR games in training and {gen_games:,} in "
             f"generation; a whole {a.scale} run took {MEASURED_WALL.get(a.scale, 'not yet measured')} "
-            "on a 2-core CPU (docs/RESULTS.md); the training and generation lines give the ETA as they go")
+            "on a 2-core CPU (docs/results/benchmark2.md); the training and generation lines give the ETA as they go")
     tr = run.stage("train", lambda: stage_train(run, scale, a.seed))
     tr_paper = (run.stage("train_paper_ppo", lambda: stage_train(run, scale, a.seed, paper=True))
                 if scale.paper_ppo is not None else None)

@@ -24,7 +24,7 @@ The flags (each added only if the installed jaxlib's XLA accepts it: XLA aborts 
    step's ~450 fused operations through its own MLIR pipeline; its classic LLVM IR emitters
    compile the step in about 60 % of the time (measured: 11.5 s -> 6.6 s) and run it at least as
    fast (per-arena rollouts at 4 096 arenas on 2 cores, medians of 3: 44 769 -> 51 371
-   decisions/s; docs/RESULTS.md). The golden games replay bit for bit with either.
+   decisions/s; docs/results/speed.md). The golden games replay bit for bit with either.
 
 GPU and TPU backends ignore them.
 """

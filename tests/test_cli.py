@@ -180,8 +180,9 @@ def test_every_help_shows_the_defaults(command, capsys):
 
 def _documented() -> dict[str, set[str]]:
     """``{command: flags}`` of every ``raidjax COMMAND ...`` line in the README, CONTRIBUTING.md and
-    docs/*.md (``test_house.py`` checks their ``python -m`` lines the same way)."""
-    docs = [ROOT / "README.md", ROOT / "CONTRIBUTING.md", *sorted((ROOT / "docs").glob("*.md"))]
+    docs/*.md, docs/results/*.md (``test_house.py`` checks their ``python -m`` lines the same way)."""
+    docs = [ROOT / "README.md", ROOT / "CONTRIBUTING.md", *sorted((ROOT / "docs").glob("*.md")),
+        *sorted((ROOT / "docs" / "results").glob("*.md"))]
     text = "".join(p.read_text() for p in docs)
     out: dict[str, set[str]] = {}
     pattern = r"\braidjax (calibrate|render|plot|train [\w-]+|benchmark \w+)\b([^`\n|]*)"

@@ -118,7 +118,8 @@ def _commands(text: str) -> dict[str, set[str]]:
     return out
 
 
-DOCS = [ROOT / "README.md", ROOT / "CONTRIBUTING.md", *sorted((ROOT / "docs").glob("*.md"))]
+DOCS = [ROOT / "README.md", ROOT / "CONTRIBUTING.md", *sorted((ROOT / "docs").glob("*.md")),
+        *sorted((ROOT / "docs" / "results").glob("*.md"))]
 DOC_COMMANDS = _commands("".join(p.read_text() for p in DOCS))
 
 

@@ -141,3 +141,28 @@ def test_heatmap_figure_orientation_shared_scale_and_redraw(tmp_path):
     png = b1_report.redraw_heatmaps(tmp_path)
     with Image.open(png) as im:
         assert png == tmp_path / "figures" / "heatmaps.png" and im.size[0] > 300 and im.size[1] > 300
+
+
+def test_switches_play_the_table_teams_and_pt_hr_by_chain_position(run, tmp_path):
+    from experiments import b1_switches
+
+    out = tmp_path / "switches.jsonl"
+    b1_switches.main([str(run[0]), "--games", "20", "--out", str(out)])
+    rows = [json.loads(s) for s in out.read_text().splitlines()]
+    table = [r for r in benchmark1.runs_of(benchmark1.SCALES["smoke"]) if r["group"] == "table"]
+    for switch in b1_switches.SWITCHES:
+        mine = [r for r in rows if r["switch"] == switch]
+        assert sorted((r["range"], r["seed"]) for r in mine if r["agent"] == "MA-POCA") == sorted(
+            (t["ranges"][0], t["seed"]) for t in table)
+        assert sorted(r["range"] for r in mine if r["agent"] == "PT-HR") == [5.0, 9.0, 13.0, 17.0]
+    for r in rows:  # 2 arenas x 10 games: every position holds 2 games, so the rates agree exactly
+        by_pos = r["win_rate_by_position"]
+        assert len(by_pos) == 10 and r["win_rate_first_game"] == by_pos[0]
+        assert r["win_rate"] == pytest.approx(np.mean(by_pos), abs=1e-3)
+        assert r["win_rate_later_games"] == pytest.approx(np.mean(by_pos[1:]), abs=1e-3)
+    # a run folder whose table group has not trained is refused in one line, naming it
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    (bare / "config.json").write_text((run[0] / "config.json").read_text())
+    with pytest.raises(ValueError, match="no final checkpoint of the table group"):
+        b1_switches.evaluate(bare, 20)

@@ -2,8 +2,8 @@
 its copy under ``docs/results``) beside the paper's, and the win-table runs' learning curves of
 both on one figure.
 
-    python -m experiments.b1_compare docs/results/benchmark1_cpu docs/results/benchmark1_cpu_reference \\
-        --labels "raidjax observation" "reference observation" --out docs/img/b1_observations.png
+    python -m experiments.b1_compare runs/b1_raidjax runs/b1_paper \\
+        --labels "raidjax observation" "reference observation" --out b1_observations.png
 
 Each folder holds ``csv/win_rate_table.csv`` (the report's table) and ``train/metrics.csv`` (one row
 per training chunk: ``env_steps`` and ``win/table/r<range>/<seed>`` training win rates).

@@ -6,7 +6,7 @@ they trained on, without the carried cooldowns (``carry_cooldowns=False``: a tea
 by the boss's carried slash charge loses there) and under the clean rules; PT-HR plays the same
 contents with the same key. Writes one JSON line per (switch, range, team) with the win rate, its
 standard error, the first game after the warm-up against the later ones, and the win rate by
-chain position (``raidjax.win_rate_by_position``):
+chain position (``trainers.runs.chained_win_rates``):
 
     python -m experiments.b1_switches runs/b1 --games 1000 --out runs/b1/switches.jsonl
 
@@ -22,7 +22,6 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from raidjax.io import HelpFormatter, atomic_write, machine, run_cli, whole_number_arg
 
@@ -40,58 +39,44 @@ def _content(skill_range: float, switch: str):
     return p
 
 
-def _rates(outcome, k: int) -> dict:
-    won = np.asarray(outcome).reshape(-1, k) == 1  # raidjax.playtest's order: arena a's game j at a * k + j
-    rate = float(won.mean())
-    return {"win_rate": round(rate, 4), "win_rate_se": round(float(np.sqrt(rate * (1 - rate) / won.size)), 4),
-            "win_rate_first_game": round(float(won[:, 0].mean()), 4),
-            "win_rate_later_games": round(float(won[:, 1:].mean()), 4) if k > 1 else None,
-            "win_rate_by_position": [round(float(x), 3) for x in won.mean(0)]}
-
-
 def table_teams(run_dir: Path):
-    """``(actor, weights [T, ...], table runs, senses)`` of a Benchmark 1 run folder's table group."""
+    """``(actor, weights with a leading axis T, the T table runs, senses)`` of a Benchmark 1 run
+    folder's table runs, all in its first training group (``benchmark1.load_group_actors``)."""
     from experiments import benchmark1 as b1
-    from trainers import checkpoint
-    from trainers.mapoca import make_trainer
 
     settings = json.loads((run_dir / "config.json").read_text())
     scale, protocol = b1.SCALES[settings["scale"]], settings["protocol"]
     runs = b1.runs_of(scale, protocol)
-    cfg = b1.config_of(scale, protocol)
-    trainer = make_trainer(cfg, redraw_ranges=True)
-    idx = b1.groups_of(len(runs), scale.runs_per_program)[0]
-    members = [runs[i] for i in idx]
-    abstract = jax.eval_shape(jax.vmap(trainer.init), *b1._run_inputs(members, settings["seed"], idx[0]))
-    final = run_dir / "checkpoints" / "mapoca" / "group0" / str(cfg.num_chunks * cfg.updates_per_chunk)
-    if not final.exists():
-        raise ValueError(f"run folder {str(run_dir)!r}: no final checkpoint of the table group ({final}); "
-                         "train it first (python -m experiments.benchmark1 ... --resume)")
-    runner, _, _ = checkpoint.restore(final, abstract)
+    actor, weights, senses = b1.load_group_actors(run_dir, scale, runs, settings["seed"], protocol, 0)
+    members = [runs[i] for i in b1.groups_of(len(runs), scale.runs_per_program)[0]]
     table = [j for j, m in enumerate(members) if m["group"] == "table"]
-    weights = jax.tree.map(lambda x: x[jnp.asarray(table)], runner.params["actor"])
-    return trainer.actor, weights, [members[j] for j in table], cfg.senses
+    return actor, jax.tree.map(lambda x: x[jnp.asarray(table)], weights), [members[j] for j in table], senses
 
 
 def evaluate(run_dir: Path, games: int, seed: int = 4242) -> list[dict]:
-    """One dict per (switch, range, team): the table teams' and PT-HR's rates (``_rates``)."""
+    """One dict per (switch, range, team): ``switch``, ``range``, ``agent`` (``MA-POCA`` with its
+    ``seed`` and ``senses``, or ``PT-HR``) and ``trainers.runs.chained_win_rates`` of its ``games``."""
     import raidjax
     from experiments.benchmark1 import _stack, per_team
     from raidjax.playtest import auto_games_per_arena
+    from trainers.runs import chained_win_rates
 
     actor, weights, teams, senses = table_teams(run_dir)
     k = auto_games_per_arena(games)
     key = jax.random.PRNGKey(seed)
+
+    def play(kk, content, policy):
+        res = raidjax.playtest(kk, content, policy, games, games_per_arena=k)
+        return {"outcome": res["outcome"], "position": res["position"]}
+
     rows = []
     for switch in SWITCHES:
-        contents = _stack([_content(t["ranges"][0], switch) for t in teams])
-        out = per_team(key, actor, weights, contents,
-                       lambda kk, c, p: raidjax.playtest(kk, c, p, games, games_per_arena=k)["outcome"], senses)
+        out = per_team(key, actor, weights, _stack([_content(t["ranges"][0], switch) for t in teams]), play, senses)
         rows += [{"switch": switch, "range": t["ranges"][0], "agent": "MA-POCA", "seed": t["seed"], "senses": senses,
-                  **_rates(o, k)} for t, o in zip(teams, out, strict=True)]
+                  **chained_win_rates(jax.tree.map(lambda x, i=i: x[i], out))} for i, t in enumerate(teams)]
         for rg in sorted({t["ranges"][0] for t in teams}):
-            res = raidjax.playtest(key, _content(rg, switch), raidjax.policies.heuristic, games, games_per_arena=k)
-            rows.append({"switch": switch, "range": rg, "agent": "PT-HR", **_rates(res["outcome"], k)})
+            rows.append({"switch": switch, "range": rg, "agent": "PT-HR",
+                         **chained_win_rates(play(key, _content(rg, switch), raidjax.policies.heuristic))})
     return rows
 
 

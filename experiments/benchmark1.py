@@ -36,6 +36,7 @@ import csv
 import dataclasses
 import io
 import time
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -248,19 +249,33 @@ def stage_train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, m
             "decisions_per_s": decisions * len(runs) / max(seconds, 1e-9)}
 
 
-def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str):
-    """``(actor module, actor weights with a leading run axis, senses)`` from the final checkpoint
-    (an older one would be a less trained team: no fallback here)."""
+def load_group_actors(out, scale: Scale, runs: list[dict], base_seed: int, protocol: str, group: int):
+    """``(actor module, actor weights with a leading axis over the group's runs, senses)`` from the
+    final checkpoint of training group ``group`` in the run folder ``out`` (an older checkpoint would
+    be a less trained team: no fallback here).
+
+    Raises:
+        ValueError: the group has no final checkpoint (one line naming the folder).
+    """
     cfg = config_of(scale, protocol)  # the senses fix the network's shapes
     trainer = make_trainer(cfg, redraw_ranges=True)
-    weights = []
-    for g, idx in enumerate(groups_of(len(runs), scale.runs_per_program)):
-        members = [runs[i] for i in idx]
-        abstract = jax.eval_shape(jax.vmap(trainer.init), *_run_inputs(members, base_seed, idx[0]))
-        final = rf.path("checkpoints", "mapoca", f"group{g}", str(cfg.num_chunks * cfg.updates_per_chunk))
-        runner, _, _ = checkpoint.restore(final, abstract)
-        weights.append(runner.params["actor"])
-    return trainer.actor, jax.tree.map(lambda *w: jnp.concatenate(w), *weights), cfg.senses
+    idx = groups_of(len(runs), scale.runs_per_program)[group]
+    abstract = jax.eval_shape(jax.vmap(trainer.init), *_run_inputs([runs[i] for i in idx], base_seed, idx[0]))
+    final = Path(out) / "checkpoints" / "mapoca" / f"group{group}" / str(cfg.num_chunks * cfg.updates_per_chunk)
+    if not final.exists():
+        raise ValueError(f"run folder {str(out)!r}: training group {group} has no final checkpoint ({final}); "
+                         "train it first (rerun its benchmark command with --resume)")
+    runner, _, _ = checkpoint.restore(final, abstract)
+    return trainer.actor, runner.params["actor"], cfg.senses
+
+
+def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, protocol: str):
+    """``(actor module, actor weights with a leading run axis, senses)`` of every run, from each
+    training group's final checkpoint (``load_group_actors``)."""
+    loaded = [load_group_actors(rf.out, scale, runs, base_seed, protocol, g)
+              for g in range(len(groups_of(len(runs), scale.runs_per_program)))]
+    actor, senses = loaded[0][0], loaded[0][2]
+    return actor, jax.tree.map(lambda *w: jnp.concatenate(w), *[w for _, w, _ in loaded]), senses
 
 
 def per_team(key, actor, weights, contents, measure, senses: str = "raidjax") -> jax.Array:

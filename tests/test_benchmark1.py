@@ -164,5 +164,5 @@ def test_switches_play_the_table_teams_and_pt_hr_by_chain_position(run, tmp_path
     bare = tmp_path / "bare"
     bare.mkdir()
     (bare / "config.json").write_text((run[0] / "config.json").read_text())
-    with pytest.raises(ValueError, match="no final checkpoint of the table group"):
+    with pytest.raises(ValueError, match="training group 0 has no final checkpoint"):
         b1_switches.evaluate(bare, 20)

@@ -379,3 +379,20 @@ def test_config_rejects_wrong_types_and_values_naming_the_field(field, value, al
     with pytest.raises(ValueError, match=f"^{field}: value {re.escape(repr(value))}.*allowed: {re.escape(allowed)}"):
         Config().replace(**{field: value})
     assert Config().replace(skill_ranges=[9, 13]).skill_ranges == (9.0, 13.0)  # JSON ints are fine
+
+
+@pytest.mark.parametrize("shape", [(20, 64), (64, 64), (64, 20), (64, 1), (3, 4, 5)])
+def test_orthogonal_init_is_flaxs_without_qr(shape):
+    """``trainers.networks.orthogonal`` draws flax's orthogonal matrices (same key, same matrix up
+    to float32 rounding), and the vmapped initialisation of several PPO-PCGRL learners (Benchmark
+    2's paper models) holds no QR: XLA:CPU's batched LAPACK QR deadlocked on 2 cores."""
+    from trainers.networks import orthogonal
+    from trainers.ppo_pcgrl import ActorCritic
+
+    key = jax.random.key(3)
+    mine, flax_ = orthogonal(1.3)(key, shape), nn.initializers.orthogonal(1.3)(key, shape)
+    np.testing.assert_allclose(mine, flax_, atol=1e-5)
+    net = ActorCritic((32, 32))
+    init = jax.vmap(lambda k: net.init(k, jnp.zeros((7,))))
+    program = str(jax.make_jaxpr(init)(jax.random.split(key, 7)))
+    assert not re.search(r"\b(qr|geqrf|householder_product|orgqr)\b", program)

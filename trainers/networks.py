@@ -23,11 +23,43 @@ from typing import Any
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from raidjax.reference_observation import ReferenceObservation
 from raidjax.types import Observation
 
 NEG = -1e9  # additive mask for logits/attention (finite: an all-masked row stays NaN-free)
+
+
+def orthogonal(scale: float = 1.0):
+    """Flax kernel initialiser: a random orthogonal matrix times ``scale``, distributed as
+    ``flax.linen.initializers.orthogonal``'s (QR of a Gaussian matrix, signs fixed so that R has a
+    positive diagonal), computed by Gram-Schmidt with re-orthogonalisation instead of LAPACK's QR.
+
+    Why: XLA:CPU runs a vmapped QR (several runs initialised together) as a batched LAPACK call
+    that splits its batch over the 2-thread pool; two of them running at once each waited on the
+    thread the other held and the process hung (seen in 2 of 3 tries of Benchmark 2's 7 vmapped
+    paper-PPO models on 2 cores). Gram-Schmidt is plain matrix arithmetic.
+
+    Returns ``init(key, shape, dtype) -> dtype[shape]`` for a 2-D or larger ``shape`` (the last axis
+    is the output width, the others are flattened into rows).
+    """
+    def init(key, shape, dtype=jnp.float32):
+        rows, cols = int(np.prod(shape[:-1])), shape[-1]
+        tall = (max(rows, cols), min(rows, cols))
+        a = jax.random.normal(key, tall, jnp.float32)
+
+        def column(j, q):
+            v = a[:, j]
+            for _ in range(2):  # twice is enough in float32 (Giraud et al. 2005, "twice is enough")
+                v = v - q @ (q.T @ v)
+            return q.at[:, j].set(v / jnp.linalg.norm(v))
+
+        q = jax.lax.fori_loop(0, tall[1], column, jnp.zeros(tall, jnp.float32))
+        q = q.T if rows < cols else q
+        return (scale * q.reshape(shape)).astype(dtype)
+
+    return init
 
 
 def masked_mean(x: jax.Array, mask: jax.Array) -> jax.Array:
@@ -130,7 +162,7 @@ class Actor(nn.Module):
             ents = nn.relu(nn.Dense(h, dtype=dt, name="mate_emb")(obs.teammates) + ctx)
             pooled = ResidualSelfAttention(h, self.heads, dt, name="rsa")(ents, obs.teammate_mask)
             x = MLP(h, self.layers, dt, name="body")(jnp.concatenate([flat.astype(pooled.dtype), pooled], axis=-1))
-            logits = nn.Dense(n_actions, kernel_init=nn.initializers.orthogonal(0.01), dtype=dt, name="pi")(x)
+            logits = nn.Dense(n_actions, kernel_init=orthogonal(0.01), dtype=dt, name="pi")(x)
             return masked_logits(logits.astype(jnp.float32), obs.action_mask)
         self_parts = [obs.self_features, obs.boss, obs.walls]
         if not self.proj_attention:
@@ -147,7 +179,7 @@ class Actor(nn.Module):
             mask = jnp.concatenate([mask, obs.projectile_mask], axis=-1)
         pooled = ResidualSelfAttention(h, self.heads, dt, name="rsa")(ents, mask)
         x = MLP(h, self.layers, dt, name="body")(jnp.concatenate([s, pooled], axis=-1))
-        logits = nn.Dense(n_actions, kernel_init=nn.initializers.orthogonal(0.01), dtype=dt, name="pi")(x)
+        logits = nn.Dense(n_actions, kernel_init=orthogonal(0.01), dtype=dt, name="pi")(x)
         return masked_logits(logits.astype(jnp.float32), obs.action_mask)
 
 

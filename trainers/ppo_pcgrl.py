@@ -23,6 +23,7 @@ import optax
 
 from raidjax import pcg, policies, xla_flags
 from trainers.config import PPOConfig
+from trainers.networks import orthogonal
 
 
 class ActorCritic(nn.Module):
@@ -36,12 +37,12 @@ class ActorCritic(nn.Module):
         """Returns ``(logits float32[..., n_params, 5], value float32[...])``."""
         def mlp(h, name):
             for i, n in enumerate(self.hidden):
-                h = nn.tanh(nn.Dense(n, kernel_init=nn.initializers.orthogonal(np.sqrt(2)), name=f"{name}{i}")(h))
+                h = nn.tanh(nn.Dense(n, kernel_init=orthogonal(np.sqrt(2)), name=f"{name}{i}")(h))
             return h
 
-        logits = nn.Dense(self.n_params * pcg.env.N_CHOICES, kernel_init=nn.initializers.orthogonal(0.01),
+        logits = nn.Dense(self.n_params * pcg.env.N_CHOICES, kernel_init=orthogonal(0.01),
                           name="pi")(mlp(x, "a"))
-        value = nn.Dense(1, kernel_init=nn.initializers.orthogonal(1.0), name="v")(mlp(x, "c"))
+        value = nn.Dense(1, kernel_init=orthogonal(1.0), name="v")(mlp(x, "c"))
         return logits.reshape(x.shape[:-1] + (self.n_params, pcg.env.N_CHOICES)), value[..., 0]
 
 

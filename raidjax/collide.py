@@ -13,21 +13,26 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
+from raidjax.lanes import lane_function
+
 INF = jnp.inf
 
 
+@lane_function
 def to_body_frame(x: jnp.ndarray, y: jnp.ndarray, c: jnp.ndarray, s: jnp.ndarray) -> tuple[jnp.ndarray, jnp.ndarray]:
     """The world vector ``(x, y)`` in the frame whose x axis is along a heading of cosine ``c`` and
     sine ``s`` (all broadcast; the caller computes them once per unit)."""
     return c * x + s * y, -s * x + c * y
 
 
+@lane_function
 def box_distance(qx: jnp.ndarray, qy: jnp.ndarray, half: jnp.ndarray) -> jnp.ndarray:
     """Distance from the point ``(qx, qy)`` (body frame) to the square of half side ``half``."""
     ex, ey = jnp.maximum(jnp.abs(qx) - half, 0.0), jnp.maximum(jnp.abs(qy) - half, 0.0)
     return jnp.sqrt(ex * ex + ey * ey)
 
 
+@lane_function
 def _slab_axis(q, d, ext):
     """Entry and exit ``t`` of the line ``q + t d`` through the slab ``|x| <= ext`` (one axis)."""
     safe = jnp.where(jnp.abs(d) < 1e-9, 1e-9, d)
@@ -40,6 +45,7 @@ def _slab_axis(q, d, ext):
     return jnp.where(still, jnp.where(inside, -INF, INF), lo), jnp.where(still, jnp.where(inside, INF, -INF), hi)
 
 
+@lane_function
 def _slab(qx, qy, dx, dy, ex, ey):
     """Entry ``t >= 0`` of the ray ``q + t d`` into the box ``|x| <= ex, |y| <= ey``, ``inf`` if never."""
     lo_x, hi_x = _slab_axis(qx, dx, ex)
@@ -48,6 +54,7 @@ def _slab(qx, qy, dx, dy, ex, ey):
     return jnp.where((enter <= leave) & (leave >= 0), jnp.maximum(enter, 0.0), INF)
 
 
+@lane_function
 def _circle(qx, qy, dx, dy, cx, cy, r):
     """First ``t >= 0`` at which the ray ``q + t d`` (``|d| = 1``) is within ``r`` of ``(cx, cy)``."""
     rx, ry = cx - qx, cy - qy
@@ -58,6 +65,7 @@ def _circle(qx, qy, dx, dy, cx, cy, r):
     return jnp.where(c <= 0, 0.0, jnp.where((disc >= 0) & (t >= 0), t, INF))
 
 
+@lane_function
 def ray_entry(qx, qy, dx, dy, half, r) -> jnp.ndarray:
     """First ``t >= 0`` at which a disc of radius ``r`` moving from ``(qx, qy)`` along the unit vector
     ``(dx, dy)`` (body frame) touches the square of half side ``half``; ``inf`` if never.

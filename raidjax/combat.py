@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from raidjax.lanes import any_, argmin, computed, cumsum, first_true, if_any, one_hot, pick, total
+from raidjax.lanes import any_, argmin, computed, cumsum, first_true, if_any, lane_function, one_hot, pick, total
 from raidjax.movement import nearest_alive_player, norm, set_boss
 from raidjax.types import (
     HIT_ATTACK,
@@ -40,11 +40,13 @@ EPS = 1e-6
 TIME_EPS = 2e-3
 
 
+@lane_function
 def haste_factor(params: Params) -> jnp.ndarray:
     """``float32[U, 1, ...]``: cast and cool times are divided by this (1 + haste/100)."""
     return (1.0 + params.stats.haste / 100.0)[:, None]
 
 
+@lane_function
 def skill_targets(state: State, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
     """Target and validity of every skill slot: ``(int32[U, S, ...], bool[U, S, ...])``.
 
@@ -69,6 +71,7 @@ def skill_targets(state: State, params: Params) -> tuple[jnp.ndarray, jnp.ndarra
     return target, jnp.where(ally_only, ally_ok, enemy_ok)
 
 
+@lane_function
 def usable_slot(state: State, params: Params, valid: jnp.ndarray, s: int) -> jnp.ndarray:
     """``bool[U, ...]``: can slot ``s`` start a cast now (GAME.md §5, with the casting/channeling rules)?
 
@@ -91,6 +94,7 @@ def usable_slot(state: State, params: Params, valid: jnp.ndarray, s: int) -> jnp
     )
 
 
+@lane_function
 def start_casts(state: State, params: Params, requested: jnp.ndarray) -> State:
     """Start the requested casts (``bool[U, S, ...]``) that are usable, slot by slot in order.
 
@@ -112,6 +116,7 @@ def start_casts(state: State, params: Params, requested: jnp.ndarray) -> State:
     return state.replace(casting=jnp.stack(casting, axis=1), cast_left=jnp.stack(left, axis=1))
 
 
+@lane_function
 def expired(left: jnp.ndarray, params: Params) -> jnp.ndarray:
     """Whether timers ``left`` (seconds, already counted down this tick) have run out.
 
@@ -122,6 +127,7 @@ def expired(left: jnp.ndarray, params: Params) -> jnp.ndarray:
     return left < 0.0 if params.config.unity_timers else left <= TIME_EPS
 
 
+@lane_function
 def advance_casts(state: State, params: Params, n_ticks: int) -> tuple[State, jnp.ndarray]:
     """Count casts and cooldowns down tick by tick; the casts that complete fire.
 
@@ -175,6 +181,7 @@ def advance_casts(state: State, params: Params, n_ticks: int) -> tuple[State, jn
                          recharge_left=recharge, mana=mana), fired
 
 
+@lane_function
 def ticks_until_expired(left: jnp.ndarray, params: Params, n_ticks: int) -> jnp.ndarray:
     """``int32[...]``: the tick (1..n_ticks) in which timers at ``left`` run out, ``n_ticks + 1`` if later."""
     tick = jnp.float32(TICK)
@@ -185,6 +192,7 @@ def ticks_until_expired(left: jnp.ndarray, params: Params, n_ticks: int) -> jnp.
     return when
 
 
+@lane_function
 def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
     """Deliver fired skills: spawn missiles/areas into the pool, return instant hits.
 
@@ -245,6 +253,7 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
     return state, instant_hits, caster.reshape((r, 2) + lanes), (got, src, packed, facing)
 
 
+@lane_function
 def spawn(p: Projectiles, spawns, n_ticks: int) -> tuple[Projectiles, jnp.ndarray]:
     """Write ``fire``'s ``spawns`` into pool slots ``p`` (all ``M`` or a block of them, with ``got`` and
     ``src`` cut alike). Returns the slots and ``flight: float32[n, ...]``, how long each flies in this
@@ -277,6 +286,7 @@ def spawn(p: Projectiles, spawns, n_ticks: int) -> tuple[Projectiles, jnp.ndarra
  F_HITS) = range(13)
 
 
+@lane_function
 def effect_sources(params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
     """Everything a hit needs to know about its source (a lane function): the skill slots' rows
     ``float32[U * S, 13, ...]`` (row ``u * S + s``) and the basic attacks' ``float32[U, 13, ...]``,
@@ -317,11 +327,13 @@ def effect_table(params: Params) -> jnp.ndarray:
     return rows.reshape((-1,) + rows.shape[2:])
 
 
+@lane_function
 def source_index(owner: jnp.ndarray, slot: jnp.ndarray, n_slots: int) -> jnp.ndarray:
     """Row of ``effect_table`` for ``(owner, slot)`` (``slot = n_slots`` is the basic attack)."""
     return owner * (n_slots + 1) + slot
 
 
+@lane_function(lane_count="n_lanes")
 def event_sources(sources: tuple[jnp.ndarray, jnp.ndarray], n_lanes: int):
     """Source features ``float32[n, 13, ...]`` and owners ``int32[n, ...]`` of two groups of a
     sub-step's hit events: every unit's ``S`` skill slots (instant skills) and every unit's basic
@@ -336,12 +348,14 @@ def event_sources(sources: tuple[jnp.ndarray, jnp.ndarray], n_lanes: int):
     return (skills, jnp.repeat(units, skills.shape[0] // u_n, axis=0)), (basic, units)
 
 
+@lane_function
 def touchable(feats: jnp.ndarray, params: Params, alive: jnp.ndarray) -> jnp.ndarray:
     """``bool[E, U, ...]``: alive units an effect with source features ``feats[E, 13, ...]`` can touch."""
     same = feats[:, F_TEAM, None] == params.team[None].astype(jnp.float32)
     return ((feats[:, F_ENEMY, None] > 0) & ~same | (feats[:, F_ALLY, None] > 0) & same) & alive[None]
 
 
+@lane_function
 def unit_columns(state: State, params: Params, facing: jnp.ndarray | None = None) -> dict[str, jnp.ndarray]:
     """Per-unit columns ``float32[U, ...]`` a hit reads from the unit it touches (position, rear
     direction, evasion, agility, parry, armour factor, team), computed once into memory: tiny, and
@@ -369,6 +383,7 @@ def unit_columns(state: State, params: Params, facing: jnp.ndarray | None = None
     return computed(columns)
 
 
+@lane_function
 def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, first=None):
     """Apply damage and heals of a sub-step's hit events to the units.
 
@@ -417,6 +432,7 @@ def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, fi
     return state, dealt_to_boss, back_count
 
 
+@lane_function(lane_shape="lanes", shared=("first",))
 def group_sums(seeds, unit_cols, f, owner, hits, from_pos, n_events: int, first, u_n: int, lanes: tuple):
     """Resolve one group of hit events (``resolve_hits``' groups, or a block of the pool's).
 
@@ -442,6 +458,7 @@ def group_sums(seeds, unit_cols, f, owner, hits, from_pos, n_events: int, first,
     return if_any(hit, lambda: _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n, lanes))
 
 
+@lane_function(lane_shape="lanes", shared=("base",))
 def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lanes: tuple):
     single = isinstance(hits, tuple)
     if single:  # one unit per event: [n, ...]
@@ -499,6 +516,7 @@ def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lane
             total(by_owner * to_boss[:, None]), total(by_owner * backs.astype(jnp.float32)[:, None]))
 
 
+@lane_function
 def basic_attacks(state: State, params: Params, dt: float):
     """Automatic melee hits on the enemy target within ``attack_range`` every ``1/attack_speed`` s.
 
@@ -516,6 +534,7 @@ def basic_attacks(state: State, params: Params, dt: float):
     return state.replace(basic_cooldown=cooldown), (go, t)
 
 
+@lane_function
 def regenerate(state: State, params: Params, dt: float) -> State:
     """HP and mana regeneration of alive units, capped at their maxima."""
     st = params.stats

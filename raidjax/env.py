@@ -115,6 +115,7 @@ def random_spawns(key: jax.Array, params: Params) -> tuple[jax.Array, jax.Array]
     return jnp.stack([x, y], -1), heading
 
 
+@lanes.lane_function
 def _boss_still_ticks(state: State, params: Params, n_ticks: int) -> jnp.ndarray:
     """``int32[...]``: ticks of this sub-step at whose start the boss is still casting a cast in progress."""
     b = state.pos.shape[0] - 1
@@ -122,6 +123,7 @@ def _boss_still_ticks(state: State, params: Params, n_ticks: int) -> jnp.ndarray
     return lanes.fold(jnp.maximum, jnp.where(state.casting[b], jnp.minimum(fire_tick, n_ticks), 0))
 
 
+@lanes.lane_function
 def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Params, n_ticks: int) -> State:
     """Cut the boss's chase in a sub-step where it started a cast to the ticks it was not casting.
 
@@ -143,6 +145,7 @@ def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Par
     return state.replace(pos=movement.set_boss(state.pos, pos_b))
 
 
+@lanes.lane_function
 def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int, running=True):
     """Advance by ``n_ticks`` 0.02 s ticks; a lane function (``raidjax.lanes``: one arena's shapes, then
     any lane axes ``...``).
@@ -199,6 +202,7 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
     return state.replace(result=result.astype(jnp.int32)), to_boss, back
 
 
+@lanes.lane_function
 def _advance(seeds, state: State, actions, params: Params):
     """Play the decision's sub-steps (one per row of ``seeds: uint32[n_sub, 2, ...]``) on lane arrays;
     a finished arena stays as it ended. Returns ``(state, to_boss: float32[U, ...], back: int32[U, ...])``."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from raidjax.lanes import any_, fold
+from raidjax.lanes import any_, fold, lane_function
 from raidjax.types import ACTION_HEURISTIC, CAST_1, TICK, Params, State
 
 SPEED = 5.0  # PT-HR moves at 5 x move speed units/s
@@ -18,6 +18,7 @@ EASE_PER_TICK = 0.02  # PT-HR closes 2 % of the gap to its circling spot per tic
 DEFAULT_DISTANCE = 10.0  # preferred distance when no skill is charged
 
 
+@lane_function
 def preferred_distance(state: State, params: Params) -> jnp.ndarray:
     """PT-HR's preferred distance ``float32[U, ...]``: the largest range of a charged skill in use (10 if none)."""
     ready = (params.skills.in_use > 0) & (state.charges > 0)
@@ -25,6 +26,7 @@ def preferred_distance(state: State, params: Params) -> jnp.ndarray:
     return jnp.where(best > 0, best, DEFAULT_DISTANCE)
 
 
+@lane_function
 def scripted_moves(state: State, params: Params, n_players: int, dt: float) -> tuple[jnp.ndarray, jnp.ndarray]:
     """Where PT-HR puts each player after ``dt`` seconds: ``(pos float32[P, 2, ...], heading float32[P, ...])``.
 
@@ -54,6 +56,7 @@ def scripted_moves(state: State, params: Params, n_players: int, dt: float) -> t
     return new_pos, jnp.arctan2(boss[1] - new_pos[:, 1], boss[0] - new_pos[:, 0])
 
 
+@lane_function
 def cast_requests(actions: jnp.ndarray, s_n: int) -> jnp.ndarray:
     """``bool[U, S, ...]`` requested casts: a learner's cast action, every slot for a PT-HR player, and
     every slot for the boss (last row), from ``actions int32[P, ...]``."""

@@ -34,6 +34,50 @@ import jax.numpy as jnp
 from jax.custom_batching import custom_vmap
 from jax.interpreters import ad, batching, mlir
 
+# Every lane function of the game, by qualified name (``lane_function``); tests/test_lanes.py runs
+# each with 0, 1 and 3 lanes against ``jax.vmap`` of its one-arena call.
+REGISTRY: dict[str, object] = {}
+# While ``recording``: the calls of registered functions, ``(name, args, kwargs)`` (concrete values).
+_RECORDS: list = [None]
+
+
+def lane_function(fn=None, *, lane_shape: str | None = None, lane_count: str | None = None,
+                  shared: tuple[str, ...] = ()):
+    """Mark ``fn`` as a lane function (the layout's rules in CONTRIBUTING, "Write game code in the
+    lane layout"): its arrays carry the game's axes first and any number of lane axes last, and it
+    gives, lane by lane, what it gives one arena. Registered in ``REGISTRY``; the function is returned
+    unchanged but for recording its calls while ``recording`` is active (checked by the test suite).
+
+    ``lane_shape`` / ``lane_count``: the name of an argument that holds the lanes' shape (a tuple)
+    or their number (an ``int``), for a function that must be told them. ``shared``: arguments
+    whose arrays carry no lanes (the same for every arena, such as a group's die numbers).
+    """
+    if fn is None:
+        return functools.partial(lane_function, lane_shape=lane_shape, lane_count=lane_count, shared=shared)
+    name = f"{fn.__module__}.{fn.__qualname__}"
+
+    @functools.wraps(fn)
+    def marked(*args, **kwargs):
+        calls = _RECORDS[-1]
+        if calls is not None and not any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves((args, kwargs))):
+            calls.append((name, args, kwargs))
+        return fn(*args, **kwargs)
+
+    marked.lane_args = {"lane_shape": lane_shape, "lane_count": lane_count, "shared": tuple(shared)}
+    REGISTRY[name] = marked
+    return marked
+
+
+@contextlib.contextmanager
+def recording():
+    """Collect the calls of every ``lane_function`` made with concrete arrays (run the game under
+    ``jax.disable_jit()``): yields the list of ``(name, args, kwargs)``."""
+    _RECORDS.append([])
+    try:
+        yield _RECORDS[-1]
+    finally:
+        _RECORDS.pop()
+
 
 def pick(x: jax.Array, idx: jax.Array) -> jax.Array:
     """``x[idx]`` along the leading axis, lane by lane, as ``N - 1`` selects (no gather).
@@ -279,6 +323,8 @@ def batch_level(fast, plain):
     run one branch op by op. Bound as a program here, each would be compiled whole, with the
     values it closes over as constants (an eager decision: 20 such compiles, about 10 s on 2 cores).
     """
+    if _RECORDS[-1] is not None:  # recording (tests): all of the work, on the values given
+        return plain()
     if jax.config.jax_disable_jit:
         return fast()
     if _DIFFERENTIATED[-1]:  # derivatives of the same values, through the program without conditionals
@@ -315,8 +361,8 @@ def if_any(pred: jax.Array, fn):
     the lanes are the arenas, so one test covers the whole batch and the conditional skips the
     work. Under an outer ``vmap`` (``batch_level``) and off the CPU backend ``fn`` always runs.
     """
-    if jax.default_backend() != "cpu" or _varying(pred):
-        return fn()
+    if jax.default_backend() != "cpu" or _varying(pred) or _RECORDS[-1] is not None:
+        return fn()  # recording (tests): every lane function runs on the values it is given
     closed, shapes = jax.make_jaxpr(fn, return_shape=True)()  # traced once: both programs run its jaxpr
     run = jex_core.jaxpr_as_fun(closed)
     zeros = [jnp.zeros(x.shape, x.dtype) for x in jax.tree.leaves(shapes)]
@@ -334,7 +380,7 @@ def computed(fn):
     ``fn`` closed over (the leaves a phase did not change) pass by the conditional. Outside ``gate``
     and off the CPU backend this is ``fn()``.
     """
-    if _GATE[-1] is None or jax.default_backend() != "cpu":
+    if _GATE[-1] is None or jax.default_backend() != "cpu" or _RECORDS[-1] is not None:
         return fn()
     closed, shapes = jax.make_jaxpr(fn, return_shape=True)()
     if _varying(closed.consts):

@@ -12,7 +12,7 @@ import math
 import jax.numpy as jnp
 
 from raidjax import heuristic
-from raidjax.lanes import any_, argmin, computed, if_any, pick
+from raidjax.lanes import any_, argmin, computed, if_any, lane_function, pick
 from raidjax.types import (
     ACTION_HEURISTIC,
     BACKWARD,
@@ -34,11 +34,13 @@ BOSS_STOP_DISTANCE = 1.6  # the boss stops chasing this close to its target
 MOVING_SPEED = 0.5  # a unit displaced faster than this (units/s) counts as moving
 
 
+@lane_function
 def heading_vec(angle: jnp.ndarray) -> jnp.ndarray:
     """Unit vectors ``float32[U, 2, ...]`` of heading angles ``float32[U, ...]`` (0 = +x, CCW)."""
     return jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=1)
 
 
+@lane_function
 def norm(v: jnp.ndarray, axis: int) -> jnp.ndarray:
     """Length of vectors ``v`` whose 2 components lie along ``axis`` (counted from the front)."""
     x, y = jnp.take(v, 0, axis), jnp.take(v, 1, axis)
@@ -58,6 +60,7 @@ def impulse_integrals(n_ticks: int) -> tuple[float, float, float]:
     return d**n_ticks, s, c0, ca
 
 
+@lane_function
 def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) -> State:
     """Apply ``actions: int32[P, ...]`` for ``dt`` seconds to the players (the boss is untouched).
 
@@ -105,17 +108,20 @@ def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) 
     )
 
 
+@lane_function
 def nearest_alive_player(state: State) -> jnp.ndarray:
     """Index ``int32[...]`` of the alive player nearest the boss (0 if none is alive)."""
     d = norm(state.pos[:-1] - state.pos[-1], axis=1)
     return argmin(jnp.where(state.alive[:-1], d, jnp.inf))
 
 
+@lane_function
 def set_boss(x: jnp.ndarray, value: jnp.ndarray) -> jnp.ndarray:
     """``x[U, ...]`` with its last (the boss's) row replaced by ``value``."""
     return jnp.concatenate([x[:-1], value[None].astype(x.dtype)])
 
 
+@lane_function
 def move_boss(state: State, params: Params, dt: float, moving_time: jnp.ndarray | float | None = None) -> State:
     """Re-target, chase at ``move_speed`` for ``moving_time`` seconds (default ``dt``) unless casting
     or close, face the target.
@@ -145,6 +151,7 @@ def move_boss(state: State, params: Params, dt: float, moving_time: jnp.ndarray 
     )
 
 
+@lane_function
 def clamp_to_walls(state: State, params: Params) -> State:
     """Keep every unit's disc inside the arena; zero the velocity component into a wall."""
     lim = (HALF_ARENA - params.stats.radius)[:, None]
@@ -153,6 +160,7 @@ def clamp_to_walls(state: State, params: Params) -> State:
     return state.replace(pos=clamped, vel=jnp.where(hit, 0.0, state.vel))
 
 
+@lane_function
 def update_moving(state: State, old_pos: jnp.ndarray, dt: float) -> State:
     """Set ``moving[U, ...]``: displaced faster than ``MOVING_SPEED`` during the sub-step."""
     speed = norm(state.pos - old_pos, axis=1) / dt

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 
 from raidjax import collide
 from raidjax.combat import EPS, F_HITS, F_RADIUS, F_SPEED, group_sums, spawn, touchable
-from raidjax.lanes import any_, argmin, batch_level, computed, materialize, one_hot, pick, total
+from raidjax.lanes import any_, argmin, batch_level, computed, lane_function, materialize, one_hot, pick, total
 from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Params, Projectiles, State
 
 POOL_BLOCK = 4  # pool slots per block of work
@@ -33,6 +33,7 @@ def pool_blocks(m: int) -> int:
     return 1
 
 
+@lane_function
 def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: jnp.ndarray, unit_cols):
     """Advance the pool one sub-step with swept collision; slot m flies ``flight[m]`` seconds
     (``combat.spawn``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
@@ -125,6 +126,7 @@ def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: j
     return state.replace(projectiles=new), hits, p.pos
 
 
+@lane_function
 def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_ticks: int, unit_cols,
         n_events: int, running=True):
     """Spawn this sub-step's projectiles, move the pool and resolve its hits, block by block (see

@@ -8,9 +8,11 @@ implied games/s. Uses ``raidjax.pcg.step_autoreset`` (exactly one playtest per s
     python benchmarks/pcg_throughput.py --generation 10 --decisions 4 --n-games 300   # Benchmark 2's generation
     python benchmarks/pcg_throughput.py --train paper --steps 2                      # its paper PPO's training
 
-``--beside-playtest`` also times a PT-HR playtest (``raidjax.playtest``, reference content at range
-13, chained arenas) of as many games as one of the generator's measurements plays side by side, in
-the same process, and adds ``playtest_games_per_s`` and ``ratio_to_playtest`` to the line.
+``--beside-playtest`` also times two PT-HR playtests (chained arenas) of as many games as one of the
+generator's measurements plays side by side, in the same process: the reference content at range
+13 (``playtest_games_per_s``, ``ratio_to_playtest``), and one content per episode with a skill drawn
+uniformly from the generator's box (``box_playtest_games_per_s``, ``ratio_to_box_playtest``), the
+kind of games generation plays (longer: both report their mean decisions per game).
 """
 
 from __future__ import annotations
@@ -109,26 +111,43 @@ def training(preset: str, updates: int) -> dict:
             "compile_s": round(compile_s, 2), "seconds": round(seconds, 2), "games_per_s": round(games / seconds, 1)}
 
 
-def playtest_beside(games: int, repeats: int) -> float:
-    """games/s of a PT-HR playtest of ``games`` games (reference content, range 13, raidjax's one
-    protocol: chained arenas after a warm-up), compiled first, best of ``repeats``."""
+def playtest_beside(games: int, repeats: int, groups: int | None = None) -> tuple[float, float]:
+    """``(games/s, mean decisions per game)`` of a PT-HR playtest of ``games`` games (raidjax's one
+    protocol: chained arenas after a warm-up), compiled first, best of ``repeats``. ``groups=None``:
+    the reference content at range 13; else ``groups`` contents of ``games // groups`` games each
+    (``raidjax.playtest_groups``), each with a skill drawn uniformly from the generator's box, as
+    generator episodes play: the same kind of games, which are longer than the reference's."""
+    import numpy as np
+
     import raidjax
 
-    params = raidjax.make_params(skill_range=13.0)
-    play = lambda k: raidjax.playtest(k, params, raidjax.policies.heuristic, games)["outcome"]
-    jax.block_until_ready(play(jax.random.key(0)))  # compiles
+    if groups is None:
+        params = raidjax.make_params(skill_range=13.0)
+        play = lambda k: raidjax.playtest(k, params, raidjax.policies.heuristic, games)  # noqa: E731
+    else:
+        lo, hi = np.asarray(pcg.env.low()), np.asarray(pcg.env.high())
+        skills = lo + np.random.default_rng(0).random((groups, lo.size)) * (hi - lo)
+        contents = jax.vmap(lambda s: pcg.env.skill_params(pcg.env.base_game(), s))(jax.numpy.asarray(skills))
+        n = games // groups
+        play = jax.jit(lambda k: raidjax.playtest_groups(jax.random.split(k, groups), contents,
+                                                         raidjax.policies.heuristic, n))
+    length = float(np.mean(np.asarray(jax.block_until_ready(play(jax.random.key(0)))["length"])))  # compiles
     times = []
     for i in range(repeats):
         t0 = time.perf_counter()
         jax.block_until_ready(play(jax.random.key(1 + i)))
         times.append(time.perf_counter() - t0)
-    return games / min(times)
+    return games / min(times), length
 
 
-def _beside(row: dict, games: int, repeats: int) -> dict:
-    rate = playtest_beside(games, repeats)
+def _beside(row: dict, games: int, repeats: int, groups: int) -> dict:
+    rate, length = playtest_beside(games, repeats)
+    box_rate, box_length = playtest_beside(games, repeats, groups)
     return {**row, "playtest_games": games, "playtest_games_per_s": round(rate, 1),
-            "ratio_to_playtest": round(row["games_per_s"] / rate, 3)}
+            "playtest_decisions_per_game": round(length, 1), "ratio_to_playtest": round(row["games_per_s"] / rate, 3),
+            "box_playtest_groups": groups, "box_playtest_games_per_s": round(box_rate, 1),
+            "box_playtest_decisions_per_game": round(box_length, 1),
+            "ratio_to_box_playtest": round(row["games_per_s"] / box_rate, 3)}
 
 
 def main() -> None:
@@ -154,7 +173,9 @@ def main() -> None:
     elif args.train:
         row = training(args.train, args.steps)
     if row is not None:
-        print(json.dumps(_beside(row, row["games_per_measurement"], args.repeats) if args.beside_playtest else row))
+        groups = row.get("episodes", row.get("episodes_side_by_side"))
+        print(json.dumps(_beside(row, row["games_per_measurement"], args.repeats, groups) if args.beside_playtest
+                         else row))
         return
 
     params = pcg.make_pcg_params(n_games=args.n_games)
@@ -178,7 +199,8 @@ def main() -> None:
         "generator_steps_per_s": round(steps / best, 2), "games_per_s": round(steps * args.n_games / best, 1),
         "times_s": [round(t, 3) for t in times],
     }
-    print(json.dumps(_beside(row, args.envs * args.n_games, args.repeats) if args.beside_playtest else row))
+    print(json.dumps(_beside(row, args.envs * args.n_games, args.repeats, args.envs) if args.beside_playtest
+                     else row))
 
 
 if __name__ == "__main__":

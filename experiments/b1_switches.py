@@ -10,6 +10,9 @@ chain position (``trainers.runs.chained_win_rates``):
 
     python -m experiments.b1_switches runs/b1 --games 1000 --out runs/b1/switches.jsonl
 
+A finished ``raidjax train mapoca`` run folder (one skill range, three mages) works too: its seeds
+are the teams.
+
 It needs only the table runs' final checkpoint (their group, ``checkpoints/mapoca/group0``), so it
 runs as soon as that group has trained.
 """
@@ -53,6 +56,26 @@ def table_teams(run_dir: Path):
     return actor, jax.tree.map(lambda x: x[jnp.asarray(table)], weights), [members[j] for j in table], senses
 
 
+def trained_teams(run_dir: Path):
+    """``table_teams``' tuple for a ``raidjax train mapoca`` run folder (its seeds, trained at its
+    one skill range on the reference content; the run must have finished: it has ``result.json``)."""
+    from trainers import checkpoint
+    from trainers.config import Config
+    from trainers.networks import Actor
+
+    settings = json.loads((run_dir / "config.json").read_text())
+    cfg = Config.from_dict(settings["config"])
+    if len(cfg.skill_ranges) != 1 or cfg.content_box or tuple(cfg.players) != ("mage",) * 3:
+        raise ValueError(f"run: {str(run_dir)!r} trained on {list(cfg.skill_ranges)} / content_box "
+                         f"{cfg.content_box} / {list(cfg.players)}; allowed: one skill range, three mages")
+    if not (run_dir / "result.json").exists():
+        raise ValueError(f"run: {str(run_dir)!r} has not finished (no result.json); finish it with --resume")
+    weights, _ = checkpoint.load_policy_weights(run_dir / "checkpoints")
+    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, jnp.bfloat16 if cfg.bf16 else jnp.float32)
+    teams = [{"ranges": tuple(cfg.skill_ranges), "seed": i} for i in range(settings["seeds"])]  # load_policy's seed
+    return actor, weights, teams, cfg.senses
+
+
 def evaluate(run_dir: Path, games: int, seed: int = 4242) -> list[dict]:
     """One dict per (switch, range, team): ``switch``, ``range``, ``agent`` (``MA-POCA`` with its
     ``seed`` and ``senses``, or ``PT-HR``) and ``trainers.runs.chained_win_rates`` of its ``games``."""
@@ -61,7 +84,8 @@ def evaluate(run_dir: Path, games: int, seed: int = 4242) -> list[dict]:
     from raidjax.playtest import auto_games_per_arena
     from trainers.runs import chained_win_rates
 
-    actor, weights, teams, senses = table_teams(run_dir)
+    trainer = json.loads((run_dir / "config.json").read_text()).get("trainer")
+    actor, weights, teams, senses = trained_teams(run_dir) if trainer == "mapoca" else table_teams(run_dir)
     k = auto_games_per_arena(games)
     key = jax.random.PRNGKey(seed)
 
@@ -83,12 +107,13 @@ def evaluate(run_dir: Path, games: int, seed: int = 4242) -> list[dict]:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(prog="python -m experiments.b1_switches", description=__doc__.split("\n")[0],
                                  formatter_class=HelpFormatter)
-    ap.add_argument("run", type=Path, help="a Benchmark 1 run folder whose table group has trained")
+    ap.add_argument("run", type=Path, help="a Benchmark 1 run folder whose table group has trained, or a "
+                    "finished `raidjax train mapoca` run folder (one skill range, three mages)")
     ap.add_argument("--games", type=whole_number_arg(1), default=1000, help="games per team and switch")
     ap.add_argument("--out", type=Path, required=True, help="JSON lines file to write")
     args = ap.parse_args(argv)
     if not (args.run / "config.json").exists():
-        raise ValueError(f"run: {str(args.run)!r} is not a Benchmark 1 run folder (no config.json)")
+        raise ValueError(f"run: {str(args.run)!r} is not a run folder (no config.json)")
     rows = evaluate(args.run, args.games)
     stamp = machine()
     atomic_write(args.out, "".join(json.dumps({**r, "games": args.games, "machine": stamp}) + "\n" for r in rows))

@@ -229,13 +229,8 @@ def _advance(seeds, state: State, actions, params: Params):
     return new, to_boss, back
 
 
-def _advance_like(seeds, state: State, actions, params: Params):
-    """``_advance``'s outputs as shapes and dtypes, without tracing it: the state keeps its own."""
-    return state, jax.ShapeDtypeStruct(state.hp.shape, jnp.float32), jax.ShapeDtypeStruct(state.hp.shape, jnp.int32)
-
-
 # Under vmap the sub-steps run on the lane layout: the arena axis last (raidjax.lanes).
-advance = lanes.batched(_advance, full=(1,), out_like=_advance_like)
+advance = lanes.batched(_advance, full=(1,))
 
 
 def _select(pred, a, b):

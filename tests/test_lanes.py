@@ -200,19 +200,6 @@ def test_batched_traces_only_the_program_that_runs():
     assert shapes == [((3, 2, 2), (3, 1, 1))]
 
 
-@pytest.mark.parametrize("rules", ["reference", "clean"])
-def test_advance_like_gives_the_sub_steps_output_types(rules):
-    """``env.advance``'s ``out_like`` (its outputs' avals, weak types included, without tracing it)
-    against the traced ``_advance`` on a reset state."""
-    from raidjax import env
-
-    p = raidjax.make_params(config=raidjax.EnvConfig.from_rules(rules), skill_range=9.0)
-    _, state = raidjax.reset(jax.random.key(0), p)
-    seeds = jnp.zeros((p.config.n_substeps, 2), jnp.uint32)
-    args = (seeds, state, acts(NOOP), p)
-    assert jax.eval_shape(env._advance, *args) == jax.eval_shape(env._advance_like, *args)
-
-
 def test_vmapped_step_equals_single_steps_bit_for_bit():
     contents, states, actions = _fights()
     keys = jax.random.split(jax.random.key(4), 4)

@@ -108,13 +108,16 @@ SCALES = {
                    paper_ppo=dict(n_arenas=2, n_steps=2, total_steps=4, update_epochs=1, n_minibatches=2, hidden=16,
                                   layers=2, n_games=4, max_edits=6),
                    fast_compile=True, bootstrap=50),
-    # Sized for one run of at most 3 h on a 2-core CPU, the paper protocol unchanged (40-decision
+    # Meant for one run of at most 3 h on a 2-core CPU, the paper protocol unchanged (40-decision
     # episodes, 300-game measurements, greedy PPO, the last measured skill): PPO both ways side by
     # side, the paper's (one model per fixed target, 20 000 steps, N = 100 games per measurement,
     # one seed) and raidjax's (the cpu preset: one model for all targets, target observed, N = 50,
     # 10 240 steps), then 30 episodes per target and method (paper: 5 000 skills per target, 300
     # kept) in 3 parts of 10, every method's episodes side by side (one part's measurement is
-    # 4 x 7 x 10 x 300 = 84 000 games). docs/results/benchmark2.md has the measured wall-clock.
+    # 4 x 7 x 10 x 300 = 84 000 games). At the rates measured on 2 cores (docs/results/speed.md,
+    # "Benchmark 2's games beside a playtest") it takes about 3 h 40 min: the paper's PPO trains on
+    # 7 x 20 000 x 100 = 14 M games (about 2 h 5 min at 1 870 games/s), generation plays
+    # 4 x 7 x 30 x 40 x 300 = 10.1 M (about 1 h 30 min), ours 0.5 M (about 4 min).
     # Part i's key does not depend on the number of parts, so --episodes 40 extends a 30-episode run.
     "cpu": Scale(preset="cpu", ppo=dict(total_steps=10240), seeds=1, chunk=5, episodes=30, parts=3,
                  gen_games=100, eval_games=300, paper_ppo={}),
@@ -147,7 +150,7 @@ def _parse(argv=None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="python -m experiments.benchmark2",
                                  description="Benchmark 2 (content generation) of the RaidEnv paper",
                                  formatter_class=HelpFormatter)
-    add_run_arguments(ap, SCALES, "budgets: smoke (minutes), cpu (about 3 hours on 2 cores), "
+    add_run_arguments(ap, SCALES, "budgets: smoke (minutes), cpu (about 3 h 40 min on 2 cores), "
                       "gpu (one accelerator), paper")
     ap.add_argument("--protocol", choices=sorted(pm.PROTOCOLS), default="paper",
                     help="paper: strict 40-decision episodes measured with eval_games games at every edit, greedy "

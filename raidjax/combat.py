@@ -25,6 +25,7 @@ from raidjax.types import (
     TRIGGER_PASSIVE,
     Params,
     Projectiles,
+    Spawns,
     State,
 )
 from raidjax.utils import hash_dice
@@ -202,9 +203,8 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
 
     Returns ``(state, instant_hits, instant_from: float32[U*S, 2, ...], spawns)`` where ``instant_hits =
     (hit: bool[U*S, ...], unit: int32[U*S, ...])`` (an instant skill hits its target) and ``spawns``
-    says which request each free pool slot takes (``spawn`` writes them: ``raidjax.projectiles.fly``
-    does, block by block): ``(got: bool[M, ...], src: int32[M, ...], packed: float32[U*S, 6, ...],
-    facing: float32[U, 2, ...])``, the request feeding slot m being ``src[m]`` where ``got[m]``.
+    (``Spawns``) says which request each free pool slot takes (``spawn`` writes them:
+    ``raidjax.projectiles.fly`` does, block by block).
     The boss re-picks its target (nearest alive player) as its skills fire; straight missiles keep
     the facing the caster had.
     """
@@ -240,45 +240,45 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
     got = any_(assign)
     src = first_true(assign)  # [M, ...] request feeding each slot
     area_life = TICK if params.config.one_step_area else AREA_LIFETIME
-    life = jnp.broadcast_to(jnp.where(region, area_life, MISSILE_LIFETIME), fired.shape)
-    # One packed pick of the per-request fields instead of one per field: [R, 6, ...] -> [M, 6, ...].
-    cols = [kind, target, fired_tick]
-    cols = jnp.stack([jnp.broadcast_to(c, fired.shape).astype(jnp.float32) for c in cols], axis=2)
-    packed = jnp.concatenate([spawn_pos, cols, life[:, :, None]], axis=2).reshape((r, 6) + lanes)
+    life = jnp.where(region, area_life, MISSILE_LIFETIME)
+    per_request = lambda x: jnp.broadcast_to(x, fired.shape).reshape((r,) + lanes)  # noqa: E731
+    spawns = Spawns(got=got, src=src, pos=spawn_pos.reshape((r, 2) + lanes), kind=per_request(kind),
+                    target=per_request(target), tick=per_request(fired_tick), life=per_request(life), facing=facing)
     dropped = total(req) - total(got)
     inst = (fired & instant).reshape((r,) + lanes)
     inst_target = target.reshape((r,) + lanes)
     instant_hits = (inst & pick(state.alive, inst_target), inst_target)
     state = state.replace(dropped=state.dropped + dropped)
-    return state, instant_hits, caster.reshape((r, 2) + lanes), (got, src, packed, facing)
+    return state, instant_hits, caster.reshape((r, 2) + lanes), spawns
 
 
 @lane_function
-def spawn(p: Projectiles, spawns, n_ticks: int) -> tuple[Projectiles, jnp.ndarray]:
+def spawn(p: Projectiles, spawns: Spawns, n_ticks: int) -> tuple[Projectiles, jnp.ndarray]:
     """Write ``fire``'s ``spawns`` into pool slots ``p`` (all ``M`` or a block of them, with ``got`` and
     ``src`` cut alike). Returns the slots and ``flight: float32[n, ...]``, how long each flies in this
     sub-step: the whole sub-step, or, for a projectile spawned now, the ticks after the one it was
     fired in (the reference spawns in the end-of-tick coroutine phase; a projectile first moves and
     collides in the next tick)."""
-    got, src, packed, facing = spawns
-    s_n = packed.shape[0] // facing.shape[0]
+    got, src = spawns.got, spawns.src
+    s_n = spawns.kind.shape[0] // spawns.facing.shape[0]
     owner, slot = jax.lax.div(src, s_n), jax.lax.rem(src, s_n)  # request r is unit r // S's slot r % S
-    new = computed(lambda: pick(packed, src[:, None]))
-    direction = computed(lambda: pick(facing, owner[:, None]))  # the caster's facing, from U rows
+    # Each slot's request, by selects over the R requests (and the caster's facing over U units).
+    pos, kind, target, tick, life, direction = computed(lambda: (
+        pick(spawns.pos, src[:, None]), pick(spawns.kind, src), pick(spawns.target, src), pick(spawns.tick, src),
+        pick(spawns.life, src), pick(spawns.facing, owner[:, None])))
     g = got[:, None]
-    as_int = lambda x: jnp.round(x).astype(jnp.int32)  # noqa: E731
     p = Projectiles(
         live=p.live | got,
-        kind=jnp.where(got, as_int(new[:, 2]), p.kind),
-        pos=jnp.where(g, new[:, 0:2], p.pos),
+        kind=jnp.where(got, kind, p.kind),
+        pos=jnp.where(g, pos, p.pos),
         direction=jnp.where(g, direction, p.direction),
         owner=jnp.where(got, owner, p.owner),
         slot=jnp.where(got, slot, p.slot),
-        target=jnp.where(got, as_int(new[:, 3]), p.target),
-        life=jnp.where(got, new[:, 5], p.life),
+        target=jnp.where(got, target, p.target),
+        life=jnp.where(got, life, p.life),
         hit_mask=p.hit_mask & ~g,
     )
-    return p, jnp.where(got, n_ticks - new[:, 4], n_ticks) * TICK
+    return p, jnp.where(got, n_ticks - tick, n_ticks) * TICK
 
 
 # Columns of the per-source effect table (``effect_table``).

@@ -183,7 +183,7 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
         state, inst_hits, inst_from, spawns = lanes.computed(
             lambda state=state: combat.fire(state, params, fired_tick, n_ticks))
     skills, basic = combat.event_sources(sources, state.hp.ndim - 1)
-    unit_cols = combat.unit_columns(state, params, spawns[3])  # the pool moves nobody: they serve every hit
+    unit_cols = combat.unit_columns(state, params, spawns.facing)  # the pool moves nobody: they serve every hit
     m = state.projectiles.live.shape[0]
     with jax.named_scope("projectiles"):
         state, pool_sums = projectiles.fly(seeds, state, params, sources[0], spawns, n_ticks, unit_cols,

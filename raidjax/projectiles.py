@@ -153,11 +153,10 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
     m = p.live.shape[0]
     n_blocks = pool_blocks(m)
     size = m // n_blocks
-    got, src, packed, facing = spawns
-    got = got & running
+    got, src = spawns.got & running, spawns.src
 
     def block(pb: Projectiles, got_b, src_b, start):
-        pb, flight = spawn(pb, (got_b, src_b, packed, facing), n_ticks)
+        pb, flight = spawn(pb, spawns.replace(got=got_b, src=src_b), n_ticks)
         flight = jnp.where(running, flight, 0.0)
         feats = computed(lambda: pick(skills, (pb.owner * s_n + pb.slot)[:, None]))
         moved, hits, from_pos = move_projectiles(state.replace(projectiles=pb), params, feats, flight, unit_cols)

@@ -291,6 +291,22 @@ class Projectiles:
 
 
 @struct.dataclass
+class Spawns:
+    """The pool slots that one sub-step's fired skills take: ``combat.fire`` assigns them and
+    ``combat.spawn`` writes them. ``R = U * S`` requests (request ``r`` is unit ``r // S``'s skill
+    slot ``r % S``), ``M`` pool slots; lane axes follow every shape."""
+
+    got: jax.Array  # bool[M]: slot m takes a request in this sub-step
+    src: jax.Array  # int32[M]: the request slot m takes (where got)
+    pos: jax.Array  # float32[R, 2]: where the projectile or area appears
+    kind: jax.Array  # int32[R]: PROJ_HOMING / PROJ_STRAIGHT / PROJ_AREA
+    target: jax.Array  # int32[R]: the unit it is aimed at
+    tick: jax.Array  # int32[R]: the tick of the sub-step the skill fired in (1..n_ticks)
+    life: jax.Array  # float32[R]: seconds it lives
+    facing: jax.Array  # float32[U, 2]: each caster's facing while casting (straight missiles fly along it)
+
+
+@struct.dataclass
 class State:
     """Dynamic state of one arena (leading batch axes when vmapped).
 

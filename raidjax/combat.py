@@ -23,6 +23,7 @@ from raidjax.types import (
     TARGET_UNIT,
     TICK,
     TRIGGER_PASSIVE,
+    Effects,
     Params,
     Projectiles,
     Spawns,
@@ -281,78 +282,79 @@ def spawn(p: Projectiles, spawns: Spawns, n_ticks: int) -> tuple[Projectiles, jn
     return p, jnp.where(got, n_ticks - tick, n_ticks) * TICK
 
 
-# Columns of the per-source effect table (``effect_table``).
-(F_BASE, F_HEAL, F_CRIT, F_CRIT_MULT, F_BACK_MULT, F_VERS, F_AGI, F_TEAM, F_ENEMY, F_ALLY, F_SPEED, F_RADIUS,
- F_HITS) = range(13)
-
-
 @lane_function
-def effect_sources(params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
-    """Everything a hit needs to know about its source (a lane function): the skill slots' rows
-    ``float32[U * S, 13, ...]`` (row ``u * S + s``) and the basic attacks' ``float32[U, 13, ...]``,
-    columns ``F_BASE ... F_HITS``. ``raidjax.env`` builds them once per decision, in the lanes."""
+def effect_sources(params: Params) -> tuple[Effects, Effects]:
+    """Everything a hit needs to know about its source (``Effects``): the skill slots'
+    (``n = U * S``, entry ``u * S + s``) and the basic attacks' (``n = U``). ``raidjax.env`` builds
+    them once per decision, in the lanes."""
     sk, st = params.skills, params.stats
     u_n, s_n = sk.coefficient.shape[:2]
     str_scale = 1.0 + (st.strength - NEUTRAL_PRIMARY) / 100.0
     int_scale = 1.0 + (st.intelligence - NEUTRAL_PRIMARY) / 100.0
     back = jnp.where(params.team == 0, st.back_attack_multiplier * (1.0 + st.mastery / 100.0), 1.0)
-    per_unit = [st.critical / 100.0, st.crit_multiplier, back, 1.0 + st.versatility / 100.0, st.agility,
-                params.team.astype(jnp.float32)]
+    per_unit = dict(crit=st.critical / 100.0, crit_mult=st.crit_multiplier, back_mult=back,
+                    vers=1.0 + st.versatility / 100.0, agility=st.agility, team=params.team.astype(jnp.float32))
 
-    def rows(attack, coef, per_source):  # [U, n, ...] each -> [U, n, 13, ...]
+    def effects(attack, coef, **per_source):  # [U, n, ...] each -> Effects of [U * n, ...]
         power = jnp.where(attack, st.attack_power[:, None], st.spell_power[:, None])
         scale = jnp.where(attack, str_scale[:, None], int_scale[:, None])
         base = jnp.floor(coef * power + 1e-3) * scale  # GAME.md §6: int(coefficient x power)
         heal = jnp.floor(coef * (st.spell_power * int_scale)[:, None] + 1e-3)
-        cols = [base, heal, *(x[:, None] for x in per_unit), *per_source]
-        shape = jnp.broadcast_shapes(*(c.shape for c in cols))
-        return jnp.stack([jnp.broadcast_to(c, shape) for c in cols], axis=2)
+        cols = dict(base=base, heal=heal, **{k: v[:, None] for k, v in per_unit.items()}, **per_source)
+        shape = jnp.broadcast_shapes(*(c.shape for c in cols.values()))
+        return Effects(**{k: jnp.broadcast_to(c, shape).reshape((-1,) + shape[2:]) for k, c in cols.items()})
 
     as_f32 = lambda x: x.astype(jnp.float32)  # noqa: E731
-    skills = rows(sk.hit_type == HIT_ATTACK, sk.coefficient,
-                  [as_f32(sk.affect_enemy), as_f32(sk.affect_ally), sk.projectile_speed, sk.projectile_radius,
-                   as_f32(sk.hit_count)])
+    skills = effects(sk.hit_type == HIT_ATTACK, sk.coefficient, enemy=as_f32(sk.affect_enemy),
+                     ally=as_f32(sk.affect_ally), speed=sk.projectile_speed, radius=sk.projectile_radius,
+                     hits=as_f32(sk.hit_count))
     one = jnp.ones_like(st.attack_power)[:, None]  # [U, 1, ...]: one basic attack per unit
     zero = jnp.zeros_like(one)
-    basic = rows(one > 0, one, [one, zero, zero, zero, one])  # hits enemies, no ally, no flight, one unit
-    return skills.reshape((u_n * s_n,) + skills.shape[2:]), basic[:, 0]
+    basic = effects(one > 0, one, enemy=one, ally=zero, speed=zero, radius=zero, hits=one)  # one unit, no flight
+    return skills, basic
 
 
-def effect_table(params: Params) -> jnp.ndarray:
-    """``effect_sources`` as one table ``float32[U * (S + 1), 13]`` (one arena's ``params``, no lanes):
-    row ``u * (S + 1) + s`` is unit u's skill slot s, row ``u * (S + 1) + S`` its basic attack."""
+def effect_table(params: Params) -> Effects:
+    """``effect_sources`` as one ``Effects`` of ``n = U * (S + 1)`` (one arena's ``params``, no lanes):
+    entry ``u * (S + 1) + s`` is unit u's skill slot s, entry ``u * (S + 1) + S`` its basic attack."""
     skills, basic = effect_sources(params)
-    u_n = basic.shape[0]
-    rows = jnp.concatenate([skills.reshape((u_n, -1) + skills.shape[1:]), basic[:, None]], axis=1)
-    return rows.reshape((-1,) + rows.shape[2:])
+    u_n = basic.base.shape[0]
+    return jax.tree.map(lambda sk, b: jnp.concatenate([sk.reshape(u_n, -1), b[:, None]], axis=1).reshape(-1),
+                        skills, basic)
 
 
 @lane_function
 def source_index(owner: jnp.ndarray, slot: jnp.ndarray, n_slots: int) -> jnp.ndarray:
-    """Row of ``effect_table`` for ``(owner, slot)`` (``slot = n_slots`` is the basic attack)."""
+    """Entry of ``effect_table`` for ``(owner, slot)`` (``slot = n_slots`` is the basic attack)."""
     return owner * (n_slots + 1) + slot
 
 
-@lane_function(lane_count="n_lanes")
-def event_sources(sources: tuple[jnp.ndarray, jnp.ndarray], n_lanes: int):
-    """Source features ``float32[n, 13, ...]`` and owners ``int32[n, ...]`` of two groups of a
-    sub-step's hit events: every unit's ``S`` skill slots (instant skills) and every unit's basic
-    attack (the pool's are ``raidjax.projectiles``'). ``sources``: ``effect_sources``' ``(skills, basic)``;
-    ``n_lanes``: how many lane axes the arrays carry.
+@lane_function
+def pick_effects(effects: Effects, idx: jnp.ndarray) -> Effects:
+    """``effects`` at entries ``idx`` (an integer lane array), field by field (``lanes.pick``)."""
+    return jax.tree.map(lambda x: pick(x, idx), effects)
 
-    Returns ``((skill_feats, skill_owner), (basic_feats, basic_owner))``.
+
+@lane_function(lane_count="n_lanes")
+def event_sources(sources: tuple[Effects, Effects], n_lanes: int):
+    """Source effects and owners ``int32[n, ...]`` of two groups of a sub-step's hit events: every
+    unit's ``S`` skill slots (instant skills) and every unit's basic attack (the pool's are
+    ``raidjax.projectiles``'). ``sources``: ``effect_sources``' ``(skills, basic)``; ``n_lanes``: how
+    many lane axes the arrays carry.
+
+    Returns ``((skill_effects, skill_owner), (basic_effects, basic_owner))``.
     """
     skills, basic = sources
-    u_n = basic.shape[0]
+    u_n = basic.base.shape[0]
     units = jnp.arange(u_n, dtype=jnp.int32).reshape((u_n,) + (1,) * n_lanes)
-    return (skills, jnp.repeat(units, skills.shape[0] // u_n, axis=0)), (basic, units)
+    return (skills, jnp.repeat(units, skills.base.shape[0] // u_n, axis=0)), (basic, units)
 
 
 @lane_function
-def touchable(feats: jnp.ndarray, params: Params, alive: jnp.ndarray) -> jnp.ndarray:
-    """``bool[E, U, ...]``: alive units an effect with source features ``feats[E, 13, ...]`` can touch."""
-    same = feats[:, F_TEAM, None] == params.team[None].astype(jnp.float32)
-    return ((feats[:, F_ENEMY, None] > 0) & ~same | (feats[:, F_ALLY, None] > 0) & same) & alive[None]
+def touchable(effects: Effects, params: Params, alive: jnp.ndarray) -> jnp.ndarray:
+    """``bool[E, U, ...]``: alive units that ``E`` sources' ``effects`` can touch."""
+    same = effects.team[:, None] == params.team[None].astype(jnp.float32)
+    return ((effects.enemy[:, None] > 0) & ~same | (effects.ally[:, None] > 0) & same) & alive[None]
 
 
 @lane_function
@@ -392,8 +394,8 @@ def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, fi
 
     Args:
         seeds: ``uint32[2, ...]`` dice seeds (``utils.dice_seeds``) for crits, dodges and parries.
-        groups: a sequence of ``(feats, owner, hits, from_pos)``: ``float32[n, 13, ...]`` each event's
-            source features (``event_sources``), ``int32[n, ...]`` the unit it comes from, the units
+        groups: a sequence of ``(effects, owner, hits, from_pos)``: ``Effects`` of ``n`` events (each
+            event's source, ``event_sources``), ``int32[n, ...]`` the unit it comes from, the units
             it touches and ``float32[n, 2, ...]`` where it comes from (back attacks). ``hits`` is
             ``bool[n, U, ...]``, or ``(hit: bool[n, ...], unit: int32[n, ...])`` for events that touch
             at most one unit (only that unit's dice and damage are computed).
@@ -408,12 +410,12 @@ def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, fi
     u_n = state.hp.shape[0]
     lanes = state.hp.shape[1:]
     offset, sums = first if first is not None else (0, (0.0,) * 5)
-    e_n = offset + sum(g[0].shape[0] for g in groups)
+    e_n = offset + sum(g[0].base.shape[0] for g in groups)
     unit_cols = unit_columns(state, params) if unit_cols is None else unit_cols
     damage_in, heal_in, dealt, dealt_to_boss, back_count = sums
     for f, owner, hits, from_pos in groups:
         sums = group_sums(seeds, unit_cols, f, owner, hits, from_pos, e_n, offset, u_n, lanes)
-        offset += f.shape[0]
+        offset += f.base.shape[0]
         damage_in, heal_in = damage_in + sums[0], heal_in + sums[1]
         dealt, dealt_to_boss, back_count = dealt + sums[2], dealt_to_boss + sums[3], back_count + sums[4]
 
@@ -453,7 +455,7 @@ def group_sums(seeds, unit_cols, f, owner, hits, from_pos, n_events: int, first,
         hit for the first two, by owner for the rest), whole points.
     """
     xp = np if isinstance(first, int) else jnp
-    base = (xp.arange(3)[:, None] * n_events + first + xp.arange(f.shape[0])[None]) * u_n  # [3, n]
+    base = (xp.arange(3)[:, None] * n_events + first + xp.arange(f.base.shape[0])[None]) * u_n  # [3, n]
     hit = hits[0] if isinstance(hits, tuple) else hits
     return if_any(hit, lambda: _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n, lanes))
 
@@ -465,7 +467,7 @@ def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lane
         hit, unit = hits
         from_x, from_y = from_pos[:, 0], from_pos[:, 1]
         index = jnp.asarray(base.reshape(base.shape + (1,) * len(lanes)), jnp.uint32) + unit.astype(jnp.uint32)
-        fc = lambda c, f=f: f[:, c]  # noqa: E731
+        fc = lambda c, f=f: getattr(f, c)  # noqa: E731
     else:  # every unit: [n, U, ...]
         hit = hits
         from_x, from_y = from_pos[:, 0, None], from_pos[:, 1, None]
@@ -473,36 +475,36 @@ def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lane
         # numpy: the same indices in every lane; traced (the pool's blocks): give it the lane axes.
         index = (index.astype(np.uint32) if isinstance(index, np.ndarray)
                  else index.reshape(index.shape + (1,) * len(lanes)).astype(jnp.uint32))
-        fc = lambda c, f=f: f[:, c, None]  # noqa: E731
+        fc = lambda c, f=f: getattr(f, c)[:, None]  # noqa: E731
 
     def chain():  # what lands where: [n, ...] or [n, U, ...] each
         col = {k: pick(v, unit) if single else v[None] for k, v in unit_cols.items()}
         dice = hash_dice(seeds, index)
-        crit = dice[0] < fc(F_CRIT)
+        crit = dice[0] < fc("crit")
         relx, rely = from_x - col["x"], from_y - col["y"]
         length = jnp.maximum(jnp.sqrt(relx * relx + rely * rely), EPS)
         back = (relx / length) * col["back_x"] + (rely / length) * col["back_y"] >= BACK_ATTACK_COS
-        evasion = col["evasion"] + 0.5 * (col["agility"] - fc(F_AGI))
+        evasion = col["evasion"] + 0.5 * (col["agility"] - fc("agility"))
         dodge = dice[1] * 100.0 < evasion
         parry = dice[2] * 100.0 < col["parry"]
         mult = (
-            jnp.where(crit, fc(F_CRIT_MULT), 1.0)
-            * jnp.where(back, fc(F_BACK_MULT), 1.0)
-            * fc(F_VERS)
+            jnp.where(crit, fc("crit_mult"), 1.0)
+            * jnp.where(back, fc("back_mult"), 1.0)
+            * fc("vers")
             * col["armor"]
             * jnp.where(parry, PARRY_FACTOR, 1.0)
         )
-        enemy = fc(F_TEAM) != col["team"]
+        enemy = fc("team") != col["team"]
         # Homing and instant hits land on their target whatever the flags: gate them here.
-        harm = hit & enemy & (fc(F_ENEMY) > 0) & ~dodge
-        healed = hit & ~enemy & (fc(F_ALLY) > 0)
+        harm = hit & enemy & (fc("enemy") > 0) & ~dodge
+        healed = hit & ~enemy & (fc("ally") > 0)
         return harm, healed, back, mult
 
     # Computed once into memory: otherwise XLA:CPU recomputes the whole chain inside every sum below.
     harm, healed, back, mult = computed(chain)
-    damage = jnp.where(harm, jnp.floor(fc(F_BASE) * mult + 1e-3), 0.0)
-    heal = jnp.where(healed, fc(F_HEAL), 0.0)
-    back_landed = harm & back & (fc(F_TEAM) == 0)
+    damage = jnp.where(harm, jnp.floor(fc("base") * mult + 1e-3), 0.0)
+    heal = jnp.where(healed, fc("heal"), 0.0)
+    back_landed = harm & back & (fc("team") == 0)
     if single:  # spread each event's one target over the unit axis
         on = one_hot(unit, u_n, axis=1)
         damage_u, heal_u = jnp.where(on, damage[:, None], 0.0), jnp.where(on, heal[:, None], 0.0)

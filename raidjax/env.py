@@ -153,7 +153,7 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
     Args:
         seeds: ``uint32[2, ...]`` dice seeds of this sub-step (``utils.dice_seeds``).
         state: ``State`` lane arrays; actions: ``int32[P, ...]`` (checked); params: ``Params`` lane arrays.
-        sources: ``combat.effect_sources``' ``(float32[U * S, 13, ...], float32[U, 13, ...])``.
+        sources: ``combat.effect_sources``' ``(skills, basic)`` ``Effects``.
         n_ticks: ticks in the sub-step (static).
         running: ``bool[...]``; where false the projectile pool comes out unchanged to the bit (nothing
             spawns, nothing flies), so the caller freezes an ended game's other fields only.
@@ -187,7 +187,7 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
     m = state.projectiles.live.shape[0]
     with jax.named_scope("projectiles"):
         state, pool_sums = projectiles.fly(seeds, state, params, sources[0], spawns, n_ticks, unit_cols,
-                                           m + skills[0].shape[0] + basic[0].shape[0], running)
+                                           m + skills[0].base.shape[0] + basic[0].base.shape[0], running)
     with jax.named_scope("hits"):
         state, basic_hits = combat.basic_attacks(state, params, dt)
         groups = ((*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))

@@ -9,10 +9,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax.combat import F_SPEED, F_TEAM, effect_table, haste_factor, skill_targets, source_index, usable_slot
-from raidjax.lanes import pick
+from raidjax.combat import effect_table, haste_factor, pick_effects, skill_targets, source_index, usable_slot
 from raidjax.reference_observation import ReferenceObservation, observe_reference
-from raidjax.types import CAST_1, HALF_ARENA, HIT_ATTACK, TRIGGER_PASSIVE, Observation, Params, State
+from raidjax.types import CAST_1, HALF_ARENA, HIT_ATTACK, TRIGGER_PASSIVE, Effects, Observation, Params, State
 from raidjax.utils import traced_once
 
 POS_SCALE, COOL_SCALE, RANGE_SCALE, DAMAGE_SCALE, CAST_SCALE = 20.0, 5.0, 20.0, 100.0, 5.0
@@ -41,7 +40,7 @@ def action_mask(state: State, params: Params) -> jnp.ndarray:
 
 
 @traced_once
-def observe(state: State, params: Params, table: jax.Array | None = None) -> Observation | ReferenceObservation:
+def observe(state: State, params: Params, table: Effects | None = None) -> Observation | ReferenceObservation:
     """Build every player's observation.
 
     Args:
@@ -114,14 +113,14 @@ def observe(state: State, params: Params, table: jax.Array | None = None) -> Obs
     # Hostile projectiles: the K nearest live ones owned by the boss's team.
     p = state.projectiles
     k = params.config.obs_projectiles
-    feats = pick(table, source_index(p.owner, p.slot, sk.in_use.shape[1])[:, None])  # [M, 13]
-    hostile = p.live & (feats[:, F_TEAM] != 0)
+    feats = pick_effects(table, source_index(p.owner, p.slot, sk.in_use.shape[1]))  # n = M
+    hostile = p.live & (feats.team != 0)
     rel = p.pos[None] - state.pos[:n_players, None]  # [P, M, 2]
     d = jnp.linalg.norm(rel, axis=-1)
     score = jnp.where(hostile[None], d, jnp.inf)
     neg, idx = jax.lax.top_k(-score, k)
     pmask = jnp.isfinite(neg) & alive_p[:, None]
-    speed = feats[:, F_SPEED]
+    speed = feats.speed
     pvel = jnp.where((p.kind == 1)[:, None], p.direction * speed[:, None], 0.0) / POS_SCALE
     pfeat = jnp.concatenate(
         [jnp.take_along_axis(rel, idx[..., None], axis=1) / POS_SCALE, pvel[idx],

@@ -18,9 +18,9 @@ import jax
 import jax.numpy as jnp
 
 from raidjax import collide
-from raidjax.combat import EPS, F_HITS, F_RADIUS, F_SPEED, group_sums, spawn, touchable
+from raidjax.combat import EPS, group_sums, pick_effects, spawn, touchable
 from raidjax.lanes import any_, argmin, batch_level, computed, lane_function, materialize, one_hot, pick, total
-from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Params, Projectiles, State
+from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Effects, Params, Projectiles, State
 
 POOL_BLOCK = 4  # pool slots per block of work
 
@@ -34,10 +34,10 @@ def pool_blocks(m: int) -> int:
 
 
 @lane_function
-def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: jnp.ndarray, unit_cols):
+def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.ndarray, unit_cols):
     """Advance the pool one sub-step with swept collision; slot m flies ``flight[m]`` seconds
     (``combat.spawn``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
-    hits before the next). ``feats``: the pool's source features, ``float32[M, 13, ...]``;
+    hits before the next). ``feats``: the pool's sources' ``Effects`` (``n = M``);
     ``unit_cols``: ``combat.unit_columns(state, params)`` (its rear directions give the units'
     headings' cosines and sines, exactly).
 
@@ -47,12 +47,12 @@ def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: j
     """
     p = state.projectiles
     u_n = state.pos.shape[0]
-    step = feats[:, F_SPEED] * flight
+    step = feats.speed * flight
     flying = p.live & (flight > 0)
     touch = computed(lambda: touchable(feats, params, state.alive))  # [M, U, ...]
     # Reference geometry (collide.py): bodies are squares of half side ``radius`` turning with
     # their heading; a projectile touches one within its own radius of the square.
-    r_proj = feats[:, F_RADIUS]
+    r_proj = feats.radius
     half = params.stats.radius
     px, py = p.pos[:, 0], p.pos[:, 1]
     ux, uy = state.pos[:, 0], state.pos[:, 1]
@@ -105,7 +105,7 @@ def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: j
         rank.append(sum(x.astype(jnp.int32) for x in nearer))
     rank = jnp.stack(rank, axis=1)
     # one_step_area: the reference's slash is switched off by its first hit.
-    cap = 1.0 if params.config.one_step_area else feats[:, F_HITS]
+    cap = 1.0 if params.config.one_step_area else feats.hits
     left = cap - total(p.hit_mask, axis=1)
     hits_a = inside & (rank < left[:, None])
     if params.config.one_step_area:
@@ -127,7 +127,7 @@ def move_projectiles(state: State, params: Params, feats: jnp.ndarray, flight: j
 
 
 @lane_function
-def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_ticks: int, unit_cols,
+def fly(seeds, state: State, params: Params, skills: Effects, spawns, n_ticks: int, unit_cols,
         n_events: int, running=True):
     """Spawn this sub-step's projectiles, move the pool and resolve its hits, block by block (see
     the module docstring).
@@ -135,7 +135,7 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
     Args:
         seeds: ``uint32[2, ...]`` the sub-step's dice seeds.
         state: the state after ``combat.fire``.
-        skills: ``float32[U * S, 13, ...]`` the skill slots' source rows (``combat.effect_sources``).
+        skills: the skill slots' ``Effects`` (``n = U * S``, ``combat.effect_sources``).
         spawns: ``combat.fire``'s spawns (``combat.spawn`` writes them).
         n_ticks: ticks in the sub-step (static).
         unit_cols: ``combat.unit_columns(state, params)``.
@@ -158,7 +158,7 @@ def fly(seeds, state: State, params: Params, skills: jnp.ndarray, spawns, n_tick
     def block(pb: Projectiles, got_b, src_b, start):
         pb, flight = spawn(pb, spawns.replace(got=got_b, src=src_b), n_ticks)
         flight = jnp.where(running, flight, 0.0)
-        feats = computed(lambda: pick(skills, (pb.owner * s_n + pb.slot)[:, None]))
+        feats = computed(lambda: pick_effects(skills, pb.owner * s_n + pb.slot))
         moved, hits, from_pos = move_projectiles(state.replace(projectiles=pb), params, feats, flight, unit_cols)
         sums = group_sums(seeds, unit_cols, feats, pb.owner, hits, from_pos, n_events, start, u_n, lanes)
         return moved.projectiles, sums

@@ -24,7 +24,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from raidjax.combat import F_RADIUS, source_index
+from raidjax.combat import source_index
 from raidjax.lanes import pick
 from raidjax.types import HALF_ARENA, Params, State
 
@@ -192,9 +192,10 @@ def remember(state: State, params: Params) -> State:
     return state.replace(memory=state.memory.replace(stack=stack))
 
 
-def observe_reference(state: State, params: Params, table: jax.Array, action_mask: jax.Array) -> ReferenceObservation:
+def observe_reference(state: State, params: Params, table, action_mask: jax.Array) -> ReferenceObservation:
     """Build every player's ``ReferenceObservation`` from ``state`` (its ``memory`` already holds
-    this decision's vector). ``table``: ``combat.effect_table(params)``; ``action_mask``: ``bool[P, A]``."""
+    this decision's vector). ``table``: ``combat.effect_table(params)`` (``Effects``);
+    ``action_mask``: ``bool[P, A]``."""
     n_players = params.team.shape[0] - 1
     alive = state.alive[:n_players]
     others = jnp.array([[j for j in range(n_players) if j != i] for i in range(n_players)], jnp.int32)
@@ -210,7 +211,7 @@ def observe_reference(state: State, params: Params, table: jax.Array, action_mas
     origin, dirs = pos[:n_players], ray_directions(heading[:n_players])
     # Every pooled projectile also carries the prefab's 0.2 sphere (DefaultProjectile.prefab): the
     # larger of the two co-centred spheres is what a ray meets.
-    radii = jnp.maximum(pick(table, source_index(p.owner, p.slot, params.skills.in_use.shape[1])[:, None])[:, F_RADIUS],
+    radii = jnp.maximum(pick(table.radius, source_index(p.owner, p.slot, params.skills.in_use.shape[1])),
                         PREFAB_RADIUS)
     proj_rays = encode_rays(sphere_distances(origin, dirs, centres, radii, live))
     wall_rays = encode_rays(wall_distances(origin, dirs))

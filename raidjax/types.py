@@ -291,6 +291,27 @@ class Projectiles:
 
 
 @struct.dataclass
+class Effects:
+    """What a hit needs to know about its sources, one entry per source (a unit's skill slot or
+    basic attack, ``combat.effect_sources``): every field ``float32[n]`` (lane axes follow). Built
+    once per decision; ``n`` is ``len(base)``."""
+
+    base: jax.Array  # damage before multipliers: int(coefficient x power) x the primary stat's scale
+    heal: jax.Array  # healing: int(coefficient x spell power x the intelligence scale)
+    crit: jax.Array  # critical chance, 0..1
+    crit_mult: jax.Array  # damage multiplier of a critical hit
+    back_mult: jax.Array  # damage multiplier of a back attack (players; 1 for the boss)
+    vers: jax.Array  # versatility multiplier, 1 + versatility / 100
+    agility: jax.Array  # the source's agility (lowers the target's evasion)
+    team: jax.Array  # the source's team, 0 players, 1 boss
+    enemy: jax.Array  # 1 if it affects enemies
+    ally: jax.Array  # 1 if it affects allies
+    speed: jax.Array  # projectile speed (0: instant)
+    radius: jax.Array  # projectile or area radius
+    hits: jax.Array  # how many units an area hits
+
+
+@struct.dataclass
 class Spawns:
     """The pool slots that one sub-step's fired skills take: ``combat.fire`` assigns them and
     ``combat.spawn`` writes them. ``R = U * S`` requests (request ``r`` is unit ``r // S``'s skill

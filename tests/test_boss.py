@@ -217,7 +217,7 @@ def test_area_hits_at_most_hit_count_units_nearest_first(hit_count, expected):
 @jax.jit
 def _move(state, params):
     skills, _ = combat.effect_sources(params)
-    feats = skills[state.projectiles.owner * 3 + state.projectiles.slot]
+    feats = jax.tree.map(lambda x: x[state.projectiles.owner * 3 + state.projectiles.slot], skills)
     return projectiles.move_projectiles(state, params, feats, 0.1, combat.unit_columns(state, params))
 
 

@@ -74,7 +74,7 @@ E = 800
 @jax.jit
 def mean_multiplier(key, state, params):
     """Average damage of E simultaneous hits of player 0's slot 1 on the boss / base 50."""
-    feats = jnp.broadcast_to(combat.effect_table(params)[combat.source_index(0, 0, 3)], (E, 13))
+    feats = jax.tree.map(lambda x: jnp.broadcast_to(x[combat.source_index(0, 0, 3)], (E,)), combat.effect_table(params))
     hits = jnp.zeros((E, 4), bool).at[:, BOSS].set(True)
     from_pos = jnp.broadcast_to(state.pos[0], (E, 2))
     seeds = raidjax.utils.dice_seeds(key)

@@ -8,6 +8,8 @@ events per sub-step (projectiles, instant skills, basic attacks).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -385,8 +387,24 @@ def unit_columns(state: State, params: Params, facing: jnp.ndarray | None = None
     return computed(columns)
 
 
+class HitSums(NamedTuple):
+    """What a group of hit events adds up to, each ``float32[U, ...]`` (whole points): by the unit
+    hit (``damage_in``, ``heal_in``) and by the unit that hit (``dealt``, ``dealt_to_boss``,
+    ``back_count``)."""
+
+    damage_in: jax.Array
+    heal_in: jax.Array
+    dealt: jax.Array
+    dealt_to_boss: jax.Array
+    back_count: jax.Array
+
+    def plus(self, other: HitSums) -> HitSums:
+        """Field by field sum (exact: whole points)."""
+        return HitSums(*(a + b for a, b in zip(self, other, strict=True)))
+
+
 @lane_function
-def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, first=None):
+def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, resolved=None):
     """Apply damage and heals of a sub-step's hit events to the units.
 
     The ``E`` events come in groups (the pool, instant skills, basic attacks) resolved one by one
@@ -400,8 +418,8 @@ def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, fi
             ``bool[n, U, ...]``, or ``(hit: bool[n, ...], unit: int32[n, ...])`` for events that touch
             at most one unit (only that unit's dice and damage are computed).
         unit_cols: ``unit_columns(state, params)`` if already computed.
-        first: ``(n, sums)``: ``n`` events resolved already (the pool's, ``raidjax.projectiles.fly``)
-            as events ``0..n-1``, and their ``group_sums``; ``groups`` follow them.
+        resolved: ``(n, HitSums)``: ``n`` events resolved already (the pool's, ``raidjax.projectiles.fly``)
+            as events ``0..n-1``, and what they add up to; ``groups`` follow them.
 
     Returns:
         ``(state, dealt_to_boss: float32[U, ...], back: int32[U, ...])`` by owner.
@@ -409,15 +427,13 @@ def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, fi
     st = params.stats
     u_n = state.hp.shape[0]
     lanes = state.hp.shape[1:]
-    offset, sums = first if first is not None else (0, (0.0,) * 5)
+    offset, sums = resolved if resolved is not None else (0, HitSums(*(0.0,) * 5))
     e_n = offset + sum(g[0].base.shape[0] for g in groups)
     unit_cols = unit_columns(state, params) if unit_cols is None else unit_cols
-    damage_in, heal_in, dealt, dealt_to_boss, back_count = sums
     for f, owner, hits, from_pos in groups:
-        sums = group_sums(seeds, unit_cols, f, owner, hits, from_pos, e_n, offset, u_n, lanes)
+        sums = sums.plus(group_sums(seeds, unit_cols, f, owner, hits, from_pos, e_n, offset, u_n, lanes))
         offset += f.base.shape[0]
-        damage_in, heal_in = damage_in + sums[0], heal_in + sums[1]
-        dealt, dealt_to_boss, back_count = dealt + sums[2], dealt_to_boss + sums[3], back_count + sums[4]
+    damage_in, heal_in, dealt, dealt_to_boss, back_count = sums
 
     hp = state.hp - damage_in
     alive = state.alive & (hp > 0)
@@ -451,8 +467,7 @@ def group_sums(seeds, unit_cols, f, owner, hits, from_pos, n_events: int, first,
         u_n: ``U``; lanes: the lane axes' shape.
 
     Returns:
-        ``(damage_in, heal_in, dealt, dealt_to_boss, back_count)``, each ``float32[U, ...]`` (by the unit
-        hit for the first two, by owner for the rest), whole points.
+        ``HitSums``.
     """
     xp = np if isinstance(first, int) else jnp
     base = (xp.arange(3)[:, None] * n_events + first + xp.arange(f.base.shape[0])[None]) * u_n  # [3, n]
@@ -514,8 +529,8 @@ def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lane
         per_event, to_boss, backs = total(damage, axis=1), damage[:, -1], total(back_landed, axis=1)
     by_owner = one_hot(owner, u_n, axis=1).astype(jnp.float32)  # [n, U, ...]
     # Damage is whole points, so every sum here is exact in any order.
-    return (total(damage_u), total(heal_u), total(by_owner * per_event[:, None]),
-            total(by_owner * to_boss[:, None]), total(by_owner * backs.astype(jnp.float32)[:, None]))
+    return HitSums(total(damage_u), total(heal_u), total(by_owner * per_event[:, None]),
+                   total(by_owner * to_boss[:, None]), total(by_owner * backs.astype(jnp.float32)[:, None]))
 
 
 @lane_function

@@ -186,13 +186,14 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
     unit_cols = combat.unit_columns(state, params, spawns.facing)  # the pool moves nobody: they serve every hit
     m = state.projectiles.live.shape[0]
     with jax.named_scope("projectiles"):
-        state, pool_sums = projectiles.fly(seeds, state, params, sources[0], spawns, n_ticks, unit_cols,
-                                           m + skills[0].base.shape[0] + basic[0].base.shape[0], running)
+        state, pool_sums = projectiles.fly(seeds, state, params, sources[0], spawns, n_ticks=n_ticks,
+                                           unit_cols=unit_cols, running=running,
+                                           n_events=m + skills[0].base.shape[0] + basic[0].base.shape[0])
     with jax.named_scope("hits"):
         state, basic_hits = combat.basic_attacks(state, params, dt)
         groups = ((*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))
         state, to_boss, back = lanes.materialize(
-            combat.resolve_hits(seeds, state, params, groups, unit_cols, first=(m, pool_sums)), since=state)
+            combat.resolve_hits(seeds, state, params, groups, unit_cols, resolved=(m, pool_sums)), since=state)
     state = combat.regenerate(state, params, dt)
     state = state.replace(clock=state.clock + dt)
     players_dead = ~lanes.any_(state.alive[:-1])

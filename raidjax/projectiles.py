@@ -18,9 +18,9 @@ import jax
 import jax.numpy as jnp
 
 from raidjax import collide
-from raidjax.combat import EPS, group_sums, pick_effects, spawn, touchable
+from raidjax.combat import EPS, HitSums, group_sums, pick_effects, spawn, touchable
 from raidjax.lanes import any_, argmin, batch_level, computed, lane_function, materialize, one_hot, pick, total
-from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Effects, Params, Projectiles, State
+from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Effects, Params, Projectiles, Spawns, State
 
 POOL_BLOCK = 4  # pool slots per block of work
 
@@ -127,7 +127,7 @@ def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.n
 
 
 @lane_function
-def fly(seeds, state: State, params: Params, skills: Effects, spawns, n_ticks: int, unit_cols,
+def fly(seeds, state: State, params: Params, skills: Effects, spawns: Spawns, *, n_ticks: int, unit_cols,
         n_events: int, running=True):
     """Spawn this sub-step's projectiles, move the pool and resolve its hits, block by block (see
     the module docstring).
@@ -144,8 +144,8 @@ def fly(seeds, state: State, params: Params, skills: Effects, spawns, n_ticks: i
             unchanged to the bit (an ended game's).
 
     Returns:
-        ``(state, sums)``: the state with the pool moved, and ``combat.group_sums`` of the pool's
-        hits (``damage_in, heal_in, dealt, dealt_to_boss, back_count``, each ``float32[U, ...]``).
+        ``(state, sums)``: the state with the pool moved, and what the pool's hits add up to
+        (``combat.HitSums``).
     """
     p = state.projectiles
     u_n, s_n = state.casting.shape[:2]
@@ -169,7 +169,7 @@ def fly(seeds, state: State, params: Params, skills: Effects, spawns, n_ticks: i
     if n_blocks == 1:
         new, sums = one_block_only()
         return state.replace(projectiles=new), sums
-    zeros = tuple(jnp.zeros(state.hp.shape) for _ in range(5))
+    zeros = HitSums(*(jnp.zeros(state.hp.shape) for _ in range(5)))
 
     def one_block(i, carry):
         start = i * size
@@ -182,7 +182,7 @@ def fly(seeds, state: State, params: Params, skills: Effects, spawns, n_ticks: i
             new, sums = block(materialize(jax.tree.map(cut, pool)), cut(got), cut(src), start)
             pool = jax.tree.map(lambda x, y: jax.lax.dynamic_update_slice_in_dim(x, y, start, 0), pool, new)
             # Whole points: the sums are exact in any order.
-            return pool, tuple(a + b for a, b in zip(total_sums, sums, strict=True))
+            return pool, total_sums.plus(sums)
 
         # A block where no arena of the batch has a live projectile or a new one is skipped.
         return jax.lax.cond(jnp.any(cut(carry[0].live) | cut(got)), run, lambda c: c, carry)

@@ -79,6 +79,13 @@ def recording():
         _RECORDS.pop()
 
 
+def on_cpu() -> bool:
+    """Whether the lane program and its XLA:CPU scheduling (``materialize``, ``computed``, ``if_any``,
+    the pool's blocks) apply: the one place that asks which backend runs. Measured: the lanes pay on
+    XLA:CPU only; elsewhere the plain vmapped program runs (docs/DESIGN.md)."""
+    return jax.default_backend() == "cpu"
+
+
 def pick(x: jax.Array, idx: jax.Array) -> jax.Array:
     """``x[idx]`` along the leading axis, lane by lane, as ``N - 1`` selects (no gather).
 
@@ -142,7 +149,7 @@ def batched(fn, full: tuple[int, ...] = (), out_like=None):
     traced = jax.jit(fn)
 
     def rule(axis_size, in_batched, *args):
-        if jax.default_backend() != "cpu":  # measured: the lanes pay on XLA:CPU only (see below)
+        if not on_cpu():
             return jax.vmap(traced, in_axes=jax.tree.map(lambda b: 0 if b else None, tuple(in_batched)))(*args)
 
         def to_lanes(x, is_batched, width):
@@ -299,7 +306,7 @@ def materialize(tree, since=None):
     ``since``: a pytree whose leaves are already in memory (the phase's input state); leaves of
     ``tree`` that are the very same arrays pass by the conditional, which would only copy them.
     """
-    if _GATE[-1] is None or jax.default_backend() != "cpu" or _varying(tree):
+    if _GATE[-1] is None or not on_cpu() or _varying(tree):
         return tree
     leaves, treedef = jax.tree.flatten(tree)
     kept = {id(x) for x in jax.tree.leaves(since)}
@@ -361,7 +368,7 @@ def if_any(pred: jax.Array, fn):
     the lanes are the arenas, so one test covers the whole batch and the conditional skips the
     work. Under an outer ``vmap`` (``batch_level``) and off the CPU backend ``fn`` always runs.
     """
-    if jax.default_backend() != "cpu" or _varying(pred) or _RECORDS[-1] is not None:
+    if not on_cpu() or _varying(pred) or _RECORDS[-1] is not None:
         return fn()  # recording (tests): every lane function runs on the values it is given
     closed, shapes = jax.make_jaxpr(fn, return_shape=True)()  # traced once: both programs run its jaxpr
     run = jex_core.jaxpr_as_fun(closed)
@@ -380,7 +387,7 @@ def computed(fn):
     ``fn`` closed over (the leaves a phase did not change) pass by the conditional. Outside ``gate``
     and off the CPU backend this is ``fn()``.
     """
-    if _GATE[-1] is None or jax.default_backend() != "cpu" or _RECORDS[-1] is not None:
+    if _GATE[-1] is None or not on_cpu() or _RECORDS[-1] is not None:
         return fn()
     closed, shapes = jax.make_jaxpr(fn, return_shape=True)()
     if _varying(closed.consts):

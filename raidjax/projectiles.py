@@ -19,7 +19,7 @@ import jax.numpy as jnp
 
 from raidjax import collide
 from raidjax.combat import EPS, HitSums, group_sums, pick_effects, spawn, touchable
-from raidjax.lanes import any_, argmin, batch_level, computed, lane_function, materialize, one_hot, pick, total
+from raidjax.lanes import any_, argmin, batch_level, computed, lane_function, materialize, on_cpu, one_hot, pick, total
 from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Effects, Params, Projectiles, Spawns, State
 
 POOL_BLOCK = 4  # pool slots per block of work
@@ -28,7 +28,7 @@ POOL_BLOCK = 4  # pool slots per block of work
 def pool_blocks(m: int) -> int:
     """How many blocks the pool's ``m`` slots run in: ``m / POOL_BLOCK`` on the CPU backend when
     ``POOL_BLOCK`` divides ``m`` (elsewhere every block would run anyway: one block)."""
-    if jax.default_backend() == "cpu" and m % POOL_BLOCK == 0 and m > POOL_BLOCK:
+    if on_cpu() and m % POOL_BLOCK == 0 and m > POOL_BLOCK:
         return m // POOL_BLOCK
     return 1
 

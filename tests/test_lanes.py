@@ -74,7 +74,7 @@ def test_materialize_passes_the_leaves_of_since_by_the_conditional():
         return out
 
     out = gated(jnp.arange(3.0), jnp.int32(1))
-    on_cpu = jax.default_backend() == "cpu"  # elsewhere materialize changes nothing
+    on_cpu = lanes.on_cpu()  # elsewhere materialize changes nothing
     assert seen == {"kept": True, "new": not on_cpu}
     np.testing.assert_array_equal(out["y"], [0.0, 2.0, 4.0])
     assert ("conditional" in gated.lower(jnp.arange(3.0), jnp.int32(1)).as_text("hlo")) == on_cpu
@@ -96,7 +96,7 @@ def test_computed_returns_fn_and_passes_closed_over_leaves_by():
     assert seen["kept"]
     np.testing.assert_array_equal(out["y"], [0.0, 2.0, 4.0])
     assert int(out["n"]) == 2
-    on_cpu = jax.default_backend() == "cpu"  # elsewhere computed is fn()
+    on_cpu = lanes.on_cpu()  # elsewhere computed is fn()
     assert ("conditional" in gated.lower(jnp.arange(3.0), jnp.int32(1)).as_text("hlo")) == on_cpu
     # Outside a gate it is a plain call.
     np.testing.assert_array_equal(lanes.computed(lambda: jnp.arange(2.0) + 1.0), [1.0, 2.0])
@@ -110,7 +110,7 @@ def test_if_any_runs_fn_only_when_some_lane_needs_it():
     np.testing.assert_array_equal(out[0], [2.0, 3.0])
     np.testing.assert_array_equal(out[1], [True, True])
     skipped = f(jnp.array([False, False]), x)
-    if jax.default_backend() == "cpu":
+    if lanes.on_cpu():
         np.testing.assert_array_equal(skipped[0], [0.0, 0.0])
         np.testing.assert_array_equal(skipped[1], [False, False])
     # Under a vmap that batches the program (lanes.batch_level) fn runs, with no conditional.
@@ -241,4 +241,4 @@ def test_nested_vmap_equals_the_flat_one():
     count = lambda f, *a: jax.jit(f).lower(*a).as_text().count("stablehlo.case")  # noqa: E731
     n_flat = count(jax.vmap(raidjax.step), *args)
     assert count(jax.vmap(jax.vmap(raidjax.step)), *map(nest, args)) == n_flat
-    assert (n_flat > 0) == (jax.default_backend() == "cpu")
+    assert (n_flat > 0) == lanes.on_cpu()

@@ -59,9 +59,8 @@ def table_teams(run_dir: Path):
 def trained_teams(run_dir: Path):
     """``table_teams``' tuple for a ``raidjax train mapoca`` run folder (its seeds, trained at its
     one skill range on the reference content; the run must have finished: it has ``result.json``)."""
-    from trainers import checkpoint
     from trainers.config import Config
-    from trainers.networks import Actor
+    from trainers.mapoca import load_policy
 
     settings = json.loads((run_dir / "config.json").read_text())
     cfg = Config.from_dict(settings["config"])
@@ -70,10 +69,10 @@ def trained_teams(run_dir: Path):
                          f"{cfg.content_box} / {list(cfg.players)}; allowed: one skill range, three mages")
     if not (run_dir / "result.json").exists():
         raise ValueError(f"run: {str(run_dir)!r} has not finished (no result.json); finish it with --resume")
-    weights, _ = checkpoint.load_policy_weights(run_dir / "checkpoints")
-    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, jnp.bfloat16 if cfg.bf16 else jnp.float32)
-    teams = [{"ranges": tuple(cfg.skill_ranges), "seed": i} for i in range(settings["seeds"])]  # load_policy's seed
-    return actor, weights, teams, cfg.senses
+    loaded = [load_policy(run_dir, seed=i) for i in range(settings["seeds"])]  # one policy, a weights tree per seed
+    weights = jax.tree.map(lambda *w: jnp.stack(w), *[w for _, w in loaded])
+    teams = [{"ranges": tuple(cfg.skill_ranges), "seed": i} for i in range(settings["seeds"])]
+    return loaded[0][0].actor, weights, teams, loaded[0][0].senses
 
 
 def evaluate(run_dir: Path, games: int, seed: int = 4242) -> list[dict]:

@@ -34,7 +34,7 @@ import jax.numpy as jnp
 from jax.custom_batching import custom_vmap
 from jax.interpreters import ad, batching, mlir
 
-# Every lane function of the game, by qualified name (``lane_function``); tests/test_lanes.py runs
+# Every lane function of the game, by qualified name (``lane_function``); tests/test_lane_functions.py runs
 # each with 0, 1 and 3 lanes against ``jax.vmap`` of its one-arena call.
 REGISTRY: dict[str, object] = {}
 # While ``recording``: the calls of registered functions, ``(name, args, kwargs)`` (concrete values).

@@ -26,7 +26,7 @@ from flax import struct
 
 from raidjax.combat import source_index
 from raidjax.lanes import pick
-from raidjax.types import HALF_ARENA, Params, State
+from raidjax.types import HALF_ARENA, Effects, Params, State
 
 STACK = 4  # NumStackedVectorObservations of the player's BehaviorParameters
 VECTOR = 15  # the stacked vector's size with one boss
@@ -192,7 +192,7 @@ def remember(state: State, params: Params) -> State:
     return state.replace(memory=state.memory.replace(stack=stack))
 
 
-def observe_reference(state: State, params: Params, table, action_mask: jax.Array) -> ReferenceObservation:
+def observe_reference(state: State, params: Params, table: Effects, action_mask: jax.Array) -> ReferenceObservation:
     """Build every player's ``ReferenceObservation`` from ``state`` (its ``memory`` already holds
     this decision's vector). ``table``: ``combat.effect_table(params)`` (``Effects``);
     ``action_mask``: ``bool[P, A]``."""

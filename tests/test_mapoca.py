@@ -22,11 +22,13 @@ from trainers.mapoca import (
     Batch,
     advantages,
     explained_variance,
+    fresh_start,
     lambda_returns,
     load_policy,
     loss_fn,
     make_train,
     make_trainer,
+    training_content,
 )
 from trainers.networks import Actor, Critic, masked_logits
 
@@ -374,7 +376,8 @@ def test_range_table_tiles_sets_uniformly():
     ("n_arenas", 0, "a whole number >= 1"), ("lr", "1e-3", "a number"), ("anneal_lr", 1, "true or false"),
     ("total_steps", True, "a whole number"), ("gamma", 1.5, "a number in [0, 1]"), ("lr", 0.0, "a number > 0"),
     ("skill_ranges", "13", "a non-empty list of numbers in [1, 20]"), ("skill_ranges", [], "a non-empty list"),
-    ("eval_games", -1, "a whole number >= 0"), ("ent_coef", float("nan"), "a number")])
+    ("eval_games", -1, "a whole number >= 0"), ("ent_coef", float("nan"), "a number"),
+    ("fresh_starts", 1.5, "a number in [0, 1]")])
 def test_config_rejects_wrong_types_and_values_naming_the_field(field, value, allowed):
     with pytest.raises(ValueError, match=f"^{field}: value {re.escape(repr(value))}.*allowed: {re.escape(allowed)}"):
         Config().replace(**{field: value})
@@ -396,3 +399,38 @@ def test_orthogonal_init_is_flaxs_without_qr(shape):
     init = jax.vmap(lambda k: net.init(k, jnp.zeros((7,))))
     program = str(jax.make_jaxpr(init)(jax.random.split(key, 7)))
     assert not re.search(r"\b(qr|geqrf|householder_product|orgqr)\b", program)
+
+
+def test_fresh_start_resets_only_drawn_arenas_that_ended():
+    """p = 1: every arena whose episode ended starts as ``raidjax.reset`` with the drawn key would
+    (no carried timer), the others keep what ``step_autoreset`` handed them; p = 0 changes nothing."""
+    n = 3
+    params = jax.vmap(lambda _: raidjax.make_params(skill_range=13.0))(jnp.arange(n))
+    obs, state = jax.vmap(raidjax.reset)(jax.random.split(jax.random.PRNGKey(0), n), params)
+    carried = state.replace(recharging=jnp.ones_like(state.recharging),
+                            recharge_left=jnp.full_like(state.recharge_left, 3.0))
+    done = jnp.array([True, False, True])
+    key = jax.random.PRNGKey(7)
+    new_state, new_obs = jax.jit(fresh_start, static_argnums=1)(key, 1.0, done, carried, obs, params)
+    _, k_reset = jax.random.split(key)
+    obs_f, state_f = jax.vmap(raidjax.reset)(jax.random.split(k_reset, n), params)
+    for i, want in ((0, state_f), (1, carried), (2, state_f)):
+        for a, b in zip(jax.tree.leaves(jax.tree.map(lambda x, i=i: x[i], new_state)),
+                        jax.tree.leaves(jax.tree.map(lambda x, i=i: x[i], want)), strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert not bool(new_state.recharging[0].any()) and bool(new_state.recharging[1].all())
+    np.testing.assert_array_equal(new_obs.self_features[0], obs_f.self_features[0])
+    same, _ = fresh_start(key, 0.0, done, carried, obs, params)
+    assert all(bool((a == b).all()) for a, b in zip(jax.tree.leaves(same), jax.tree.leaves(carried), strict=True))
+
+
+def test_random_spawns_train_on_drawn_openings_and_leave_the_content_as_given():
+    cfg = TINY.replace(senses="reference", random_spawns=True)
+    given = raidjax.make_params(skill_range=9.0)
+    trained = training_content(cfg, given)
+    assert trained.config.random_spawns and trained.config.observation == "reference"
+    assert not given.config.random_spawns  # what evaluation plays
+    runner = jax.jit(make_trainer(cfg).init)(jax.random.PRNGKey(0))
+    pos = np.asarray(runner.env_state.pos)  # [arenas, units, 2]: each arena drew its own opening
+    assert len({tuple(np.round(p.ravel(), 4)) for p in pos}) == cfg.n_arenas
+    assert not training_content(TINY, given).config.random_spawns

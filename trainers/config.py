@@ -59,6 +59,15 @@ class Config:
         redraw_every: an arena draws a new range at its start and then after every
             ``redraw_every``-th episode (2 = the reference, ``MMORPGEnvController.ResetScene``:
             episodes 1-2, 3-4, ... share a range; 1 = every episode).
+        fresh_starts: in training only, the probability that an arena's next episode starts
+            fresh (``raidjax.reset``) instead of inheriting what the rules carry across an
+            episode's end (``raidjax.next_episode``). 0 = the reference's chained arenas. Under
+            the reference rules a game's start depends on how the previous one went (docs/GAME.md,
+            "What a game hands on to the next"); fresh starts make the start independent of it.
+            Evaluation always chains.
+        random_spawns: in training only, every episode draws its spawns (``EnvConfig.random_spawns``:
+            positions and headings), so a team cannot learn one opening by heart; evaluation plays
+            the content as given (the reference's fixed spawns).
         total_steps: environment decisions per seed.
         updates_per_chunk: updates per jitted chunk (one log row / progress line per chunk).
         checkpoint_every: checkpoint every this many updates (rounded up to whole chunks).
@@ -97,6 +106,8 @@ class Config:
     players: tuple[str, ...] = ("mage", "mage", "mage")
     parameters: tuple[str, ...] = ()
     redraw_every: int = 2
+    fresh_starts: float = 0.0
+    random_spawns: bool = False
     senses: str = "raidjax"
     # run length, checkpoints and the final evaluation
     total_steps: int = 1_000_000
@@ -127,7 +138,7 @@ class Config:
                              "redraw_every", "total_steps", "updates_per_chunk", "checkpoint_every"), (1, None)),
             "eval_games": (0, None), "lr": (0, None, "> 0"), "adam_eps": (0, None, "> 0"),
             "max_grad_norm": (0, None), "gamma": (0, 1), "lam": (0, 1), "clip_eps": (0, None, "> 0"),
-            "ent_coef": (0, None)})
+            "ent_coef": (0, None), "fresh_starts": (0, 1)})
         ranges = self.skill_ranges
         if (isinstance(ranges, str | bytes) or not hasattr(ranges, "__len__") or not len(ranges)
                 or not all(is_number(r) and 1 <= r <= 20 for r in ranges)):

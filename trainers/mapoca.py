@@ -205,6 +205,37 @@ class Trainer(NamedTuple):
 
 
 EPISODE_KEYS = ("episodes", "return_sum", "wins", "draws", "length_sum")
+
+
+def training_content(cfg: Config, params: Params) -> Params:
+    """``params`` as the learner trains on it: with ``cfg.senses`` and, under ``cfg.random_spawns``,
+    every episode's spawns drawn (``EnvConfig.random_spawns``). Evaluation plays the content as given."""
+    params = raidjax.with_senses(params, cfg.senses)
+    if cfg.random_spawns:
+        params = params.replace(config=params.config.replace(random_spawns=True))
+    return params
+
+
+def fresh_start(key: jax.Array, p: float, done: jax.Array, state: State, obs: Observation,
+                params: Params) -> tuple[State, Observation]:
+    """Arenas whose episode just ended (``done bool[N]``) start the next one fresh with probability
+    ``p``: ``raidjax.reset`` replaces what ``step_autoreset`` carried over (``Config.fresh_starts``).
+
+    Args:
+        key: PRNG key; ``state``/``obs``: ``[N]``, the episodes ``step_autoreset`` began;
+        params: ``Params [N]``.
+
+    Returns:
+        ``(state [N], obs [N])``, the arenas not drawn unchanged.
+    """
+    n = done.shape[0]
+    k_coin, k_reset = jax.random.split(key)
+    fresh = done & (jax.random.uniform(k_coin, (n,)) < p)
+    obs_f, state_f = jax.vmap(raidjax.reset)(jax.random.split(k_reset, n), params)
+    pick = lambda a, b: jnp.where(fresh.reshape((n,) + (1,) * (a.ndim - 1)), a, b)
+    return jax.tree.map(pick, state_f, state), jax.tree.map(pick, obs_f, obs)
+
+
 def make_trainer(config: Config, base_params: Params | None = None, redraw_ranges: bool | None = None,
                  fixed_content: bool = False) -> Trainer:
     """Build the pure training functions for ``config``.
@@ -226,7 +257,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     else:
         base = (pcg.base_game(cfg.players) if cfg.content_box
                 else raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0]))
-    base = raidjax.with_senses(base, cfg.senses)
+    base = training_content(cfg, base)
     default_set = range_table(cfg.skill_ranges)
     multi_range = len(cfg.skill_ranges) > 1 if redraw_ranges is None else redraw_ranges
     multi_range = (multi_range or cfg.content_box) and not fixed_content
@@ -249,7 +280,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     def init(key: jax.Array, content: Params | None = None, range_set: jax.Array | None = None) -> Runner:
         """A fresh runner; ``content`` (unbatched Params) and ``range_set`` (``float32[RANGE_TABLE]``,
         see ``range_table``) default to ``base_params`` and ``config.skill_ranges``."""
-        content = base if content is None else raidjax.with_senses(content, cfg.senses)
+        content = base if content is None else training_content(cfg, content)
         range_set = default_set if range_set is None else range_set
         k_a, k_c, k_env, k_rng, k_run = jax.random.split(key, 5)
         skills = draw_skills(k_rng, cfg, range_set, n)
@@ -270,6 +301,9 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         nxt, state, _, done, info = step_all(jax.random.split(k_env, n), runner.env_state, action,
                                              env_params_of(runner.content, runner.skills))
         next_value = critic.apply(p["critic"], info["final_observation"], method=Critic.value)
+        if cfg.fresh_starts > 0:
+            state, nxt = fresh_start(jax.random.fold_in(k_rng, 1), cfg.fresh_starts, done, state, nxt,
+                                     env_params_of(runner.content, runner.skills))
         episode, redrawn = next_draws(runner.episode, done, cfg.redraw_every)
         skills = runner.skills
         if multi_range:

@@ -86,17 +86,15 @@ def training(preset: str, updates: int) -> dict:
     the games/s of its training measurements (the networks' updates included)."""
     from trainers.config import load_config
     from trainers.generate import target_groups
-    from trainers.loop import over_runs
     from trainers.ppo_pcgrl import make_train
 
     cfg = load_config(preset, learner="ppo_pcgrl")
     pairs, labels = target_groups(cfg, 1)
     train = make_train(cfg)
     targets = jax.numpy.asarray(pairs)
-    init = jax.jit(over_runs(train.init, len(labels)))
+    init = jax.jit(jax.vmap(train.init))
     state = init(jax.random.split(jax.random.key(0), len(labels)), targets)
-    run = jax.jit(over_runs(lambda r, t: jax.lax.scan(lambda rr, _: train.update(rr, t), r, None, updates),
-                            len(labels)))
+    run = jax.jit(jax.vmap(lambda r, t: jax.lax.scan(lambda rr, _: train.update(rr, t), r, None, updates)))
     t0 = time.perf_counter()
     compiled = run.lower(state, targets).compile()
     compile_s = time.perf_counter() - t0

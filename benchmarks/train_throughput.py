@@ -72,18 +72,17 @@ def bench(preset: str, repeats: int, **overrides) -> dict:
 def bench_runs(n_runs: int, repeats: int, protocol: str = "paper") -> dict:
     """Time one chunk of the first ``n_runs`` runs of Benchmark 1's ``cpu`` scale trained side by
     side as the pipeline trains them (``experiments.benchmark1``: each run its own seed, content
-    and range table, ``trainers.loop.over_runs``). Returns a JSON-able dict with the aggregate
+    and range table, ``jax.vmap`` over the runs). Returns a JSON-able dict with the aggregate
     decisions/s of all runs."""
     from experiments import benchmark1 as b1
-    from trainers import loop
 
     scale = b1.SCALES["cpu"]
     cfg = b1.config_of(scale, protocol)
     trainer = make_trainer(cfg, redraw_ranges=True)
     args = b1._run_inputs(b1.runs_of(scale, protocol)[:n_runs], 0)
-    state = jax.jit(loop.over_runs(trainer.init, n_runs))(*args)
+    state = jax.jit(jax.vmap(trainer.init))(*args)
     t0 = time.perf_counter()
-    chunk = jax.jit(loop.over_runs(trainer.chunk, n_runs), donate_argnums=0).lower(state).compile()
+    chunk = jax.jit(jax.vmap(trainer.chunk), donate_argnums=0).lower(state).compile()
     compile_s = time.perf_counter() - t0
     state, m = chunk(state)  # warm-up
     jax.block_until_ready(m)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from trainers import checkpoint
-from trainers.loop import Learner, over_runs, train
+from trainers.loop import Learner, train
 
 
 def counter(num_updates: int, per_chunk: int, n_runs: int = 2) -> Learner:
@@ -88,22 +88,3 @@ def test_a_resumed_run_lowers_the_chunk_of_a_fresh_run(tmp_path):
     assert program(_lowering_state(restored, 2)) == program(_lowering_state(fresh, 2))
 
 
-def test_over_runs_keeps_the_runs_axis_and_batches_only_several_runs():
-    """One run: ``fn`` on the run itself, the axis put back (no size-1 vmap, whose lane program would
-    be the game's plain one); several runs: ``jax.vmap``. The same values and shapes either way."""
-
-    def fn(state, target):
-        assert state["x"].ndim == 1  # one run's state, whichever way it is called
-        return {"x": state["x"] * target}, jnp.sum(state["x"])
-
-    x = jnp.arange(6.0).reshape(2, 3)
-    for n in (1, 2):
-        state, target = {"x": x[:n]}, jnp.asarray([2.0, 3.0])[:n]
-        got = over_runs(fn, n)(state, target)
-        want = jax.vmap(fn)(state, target)
-        assert jax.tree.map(jnp.shape, got) == jax.tree.map(jnp.shape, want)
-        for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(want), strict=True):
-            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    traced = []
-    over_runs(lambda s: traced.append(type(s).__name__) or s, 1)(x[:1])
-    assert traced == ["ArrayImpl"]  # not a batched tracer: nothing vmapped

@@ -14,7 +14,6 @@ import raidjax
 from raidjax.reference_observation import ReferenceObservation
 from trainers import checkpoint
 from trainers.config import PRESETS, Config
-from trainers.loop import over_runs
 from trainers.mapoca import load_policy, make_trainer
 from trainers.networks import Actor, Critic
 
@@ -55,10 +54,10 @@ def test_train_checkpoint_and_playtest_with_reference_senses(tmp_path):
     cfg = TINY
     keys = jax.random.split(jax.random.PRNGKey(0), 1)
     trainer = make_trainer(cfg)
-    init = jax.jit(over_runs(trainer.init, 1))  # one run, as the command line trains it
+    init = jax.jit(jax.vmap(trainer.init))  # one run, vmapped as the command line trains it
     r0 = init.lower(keys).compile(FAST_COMPILE)(keys)
     assert isinstance(r0.obs, ReferenceObservation) and r0.obs.flat().shape == (1, cfg.n_arenas, 3, 204)
-    r1, m1 = jax.jit(over_runs(trainer.chunk, 1)).lower(r0).compile(FAST_COMPILE)(r0)
+    r1, m1 = jax.jit(jax.vmap(trainer.chunk)).lower(r0).compile(FAST_COMPILE)(r0)
     assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves((m1, r1.params)))
     assert r1.params["actor"]["params"]["pi"]["kernel"].shape[-1] == 8
     checkpoint.save(tmp_path / "checkpoints", r1, r1.params["actor"], cfg.to_dict(),

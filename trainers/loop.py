@@ -16,7 +16,6 @@ checkpoints are verified on restore and the rejected ones moved aside (``trainer
 from __future__ import annotations
 
 import dataclasses
-import functools
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -102,27 +101,6 @@ class Trained:
 # optimisation level 0 compiles a learner's chunk about 3x faster and runs it slower, and its float
 # results differ from the default level's.
 FAST_COMPILE = {"xla_backend_optimization_level": 0}
-
-
-def over_runs(fn: Callable, n_runs: int) -> Callable:
-    """``jax.vmap(fn)`` over the leading axis of every argument (the runs), or, for one run, ``fn``
-    applied to that run (the axis taken off every argument and put back on every output): the same
-    shapes in and out either way.
-
-    A ``vmap`` of size one would put the game's lane program under an outer ``vmap``, where raidjax
-    plays the sub-step without skipping the work no arena of the batch needs
-    (``raidjax.lanes.batch_level``) and traces it a second time; a single run instead trains on the
-    program that ``trainer.update`` compiles alone (what ``benchmarks/train_throughput.py`` times).
-    """
-    if n_runs != 1:
-        return jax.vmap(fn)
-
-    @functools.wraps(fn)
-    def one(*args):
-        out = fn(*jax.tree.map(lambda x: x[0], args))
-        return jax.tree.map(lambda x: x[None], out)
-
-    return one
 
 
 def compiler_options(fast_compile: bool) -> dict | None:

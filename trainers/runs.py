@@ -30,7 +30,7 @@ from raidjax.playtest import auto_games_per_arena
 from trainers import checkpoint
 from trainers.config import Config, PPOConfig
 from trainers.generate import PPOGenerator, generate_episodes, target_groups
-from trainers.loop import Learner, over_runs, train
+from trainers.loop import Learner, train
 from trainers.mapoca import load_policy, make_trainer, summarize
 from trainers.metrics import update_rows
 from trainers.ppo_pcgrl import make_train
@@ -67,13 +67,13 @@ def mapoca_learner(trainer, init_args: tuple, n_runs: int, row: Callable[[dict],
 
     def chunk(n: int):
         assert n == cfg.updates_per_chunk, "MA-POCA chunks are whole (num_updates is a multiple)"
-        return over_runs(trainer.chunk, n_runs)
+        return jax.vmap(trainer.chunk)
 
     def rows(u: int, n: int, m: dict, clock: dict) -> list[dict]:
         return [{"chunk": u // cfg.updates_per_chunk, "update": u + n, "env_steps": (u + n) * cfg.decisions_per_update,
                  **clock, **row(m)}]
 
-    return Learner(init=over_runs(trainer.init, n_runs), init_args=init_args, chunk=chunk,
+    return Learner(init=jax.vmap(trainer.init), init_args=init_args, chunk=chunk,
                    policy=lambda s: s.params["actor"], rows=rows, describe=describe, config=cfg.to_dict(),
                    n_runs=n_runs, num_updates=cfg.num_updates, updates_per_chunk=cfg.updates_per_chunk,
                    steps_per_update=cfg.decisions_per_update, donate=True, compiler_options=compiler_options)
@@ -104,7 +104,7 @@ def ppo_learner(config: PPOConfig, keys: jax.Array, targets: jax.Array, updates_
     def chunk(n: int):
         def run(state, tg, tw):
             one = lambda r, t: jax.lax.scan(lambda rr, _: trained.update(rr, t, tw), r, None, n)
-            return over_runs(one, len(keys))(state, tg)
+            return jax.vmap(one)(state, tg)
         return run
 
     def rows(u: int, n: int, m: dict, clock: dict) -> list[dict]:
@@ -114,7 +114,7 @@ def ppo_learner(config: PPOConfig, keys: jax.Array, targets: jax.Array, updates_
         return (f"reward {r['reward']:.2f}  final_err {r['final_error']:.3f}  edits {r['edits']:.1f}  "
                 f"entropy {r['entropy']:.2f}")
 
-    return Learner(init=over_runs(trained.init, len(keys)), init_args=(keys, targets), chunk=chunk,
+    return Learner(init=jax.vmap(trained.init), init_args=(keys, targets), chunk=chunk,
                    chunk_args=(targets, tester_weights),
                    policy=lambda s: s["params"], rows=rows, describe=describe, config=config.to_dict(),
                    n_runs=len(keys), num_updates=config.num_updates, updates_per_chunk=updates_per_chunk,

@@ -12,6 +12,11 @@ content carried per arena in the state, as the wrapper always does); ``raidjax-s
 ``raidjax-per-arena`` (``raidjax.step_autoreset`` directly, one content for all arenas or one per
 arena). raidjax rows use ``--substeps`` (5: the reference's 0.02 s tick; 1: one 0.1 s sub-step).
 
+``--learner`` runs the loop as a learner's rollout sees it instead: every decision's observations
+are kept (their sum is carried through the loop, so neither environment can skip computing them)
+and each agent's action is drawn uniformly among the actions its environment says are available
+(SMAX's ``get_avail_actions``, raidjax's ``Observation.action_mask``).
+
     pip install -e ".[jaxmarl]"
     python benchmarks/vs_smax.py --arenas 4096 --steps 128
 """
@@ -30,47 +35,71 @@ from raidjax.io import machine
 from raidjax.xla_flags import use_recommended_xla_flags
 
 
-def jaxmarl_rollout(env, n_arenas: int, n_steps: int):
-    """JaxMARL speed-script loop: ``rollout(key) -> final state``."""
+def obs_sum(obs) -> jax.Array:
+    """The sum of every float in ``obs`` (a pytree): a value that needs all of it."""
+    return sum(jnp.sum(x, dtype=jnp.float32) for x in jax.tree.leaves(obs))
+
+
+def draw_available(key: jax.Array, available: jax.Array) -> jax.Array:
+    """``int32[...]``: one action per row of ``available bool[..., A]``, uniform among its true entries."""
+    return jax.random.categorical(key, jnp.where(available, 0.0, -jnp.inf)).astype(jnp.int32)
+
+
+def jaxmarl_rollout(env, n_arenas: int, n_steps: int, learner: bool = False):
+    """JaxMARL speed-script loop: ``rollout(key) -> (final state, observation sum)`` (the sum is 0
+    unless ``learner``)."""
     n_actions = env.action_space(env.agents[0]).n
 
     def rollout(key):
         k_reset, k_run = jax.random.split(key)
-        _, state = jax.vmap(env.reset)(jax.random.split(k_reset, n_arenas))
+        obs, state = jax.vmap(env.reset)(jax.random.split(k_reset, n_arenas))
 
         def body(carry, _):
-            state, key = carry
+            state, key, total = carry
             key, k_act, k_step = jax.random.split(key, 3)
-            acts = jax.random.randint(k_act, (env.num_agents, n_arenas), 0, n_actions)
-            _, state, _, _, _ = jax.vmap(env.step)(jax.random.split(k_step, n_arenas), state,
-                                                   {a: acts[i] for i, a in enumerate(env.agents)})
-            return (state, key), None
+            if learner:
+                avail = jax.vmap(env.get_avail_actions)(state)
+                acts = draw_available(k_act, jnp.stack([avail[a] for a in env.agents]).astype(bool))
+            else:
+                acts = jax.random.randint(k_act, (env.num_agents, n_arenas), 0, n_actions)
+            obs, state, _, _, _ = jax.vmap(env.step)(jax.random.split(k_step, n_arenas), state,
+                                                     {a: acts[i] for i, a in enumerate(env.agents)})
+            # The agents' observations, as a decentralised learner (IPPO) reads them; SMAX's extra
+            # "world_state" (a centralised critic's input) is left out, so XLA may skip it.
+            agents_obs = [obs[a] for a in env.agents]
+            return (state, key, total + obs_sum(agents_obs) if learner else total), None
 
-        (state, _), _ = jax.lax.scan(body, (state, k_run), None, n_steps)
-        return state
+        (state, _, total), _ = jax.lax.scan(body, (state, k_run, jnp.float32(0)), None, n_steps)
+        return state, total
 
     return rollout
 
 
-def raidjax_rollout(params, n_arenas: int, n_steps: int, per_arena: bool):
+def raidjax_rollout(params, n_arenas: int, n_steps: int, per_arena: bool, learner: bool = False):
     """The same loop on ``raidjax.step_autoreset``; ``per_arena``: ``params`` batched ``[n_arenas]``."""
     axis = 0 if per_arena else None
     n_players = params.team.shape[-1] - 1
 
     def rollout(key):
         k_reset, k_run = jax.random.split(key)
-        _, state = jax.vmap(raidjax.reset, (0, axis))(jax.random.split(k_reset, n_arenas), params)
+        obs, state = jax.vmap(raidjax.reset, (0, axis))(jax.random.split(k_reset, n_arenas), params)
 
         def body(carry, _):
-            state, key = carry
+            state, mask, key, total = carry  # mask: the last observation's action mask (learner only)
             key, k_act, k_step = jax.random.split(key, 3)
-            acts = jax.random.randint(k_act, (n_arenas, n_players), 0, raidjax.N_ACTIONS)
-            _, state, _, _, _ = jax.vmap(raidjax.step_autoreset, (0, 0, 0, axis))(
+            if learner:
+                acts = draw_available(k_act, mask)
+            else:
+                acts = jax.random.randint(k_act, (n_arenas, n_players), 0, raidjax.N_ACTIONS)
+            obs, state, _, _, _ = jax.vmap(raidjax.step_autoreset, (0, 0, 0, axis))(
                 jax.random.split(k_step, n_arenas), state, acts, params)
-            return (state, key), None
+            if learner:
+                return (state, obs.action_mask, key, total + obs_sum(obs)), None
+            return (state, mask, key, total), None
 
-        (state, _), _ = jax.lax.scan(body, (state, k_run), None, n_steps)
-        return state
+        mask = obs.action_mask if learner else jnp.zeros((), bool)
+        (state, _, _, total), _ = jax.lax.scan(body, (state, mask, k_run, jnp.float32(0)), None, n_steps)
+        return state, total
 
     return rollout
 
@@ -100,6 +129,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3, help="timed rollouts (the best counts)")
     ap.add_argument("--substeps", type=int, default=5, choices=(1, 5), help="raidjax sub-steps per decision")
     ap.add_argument("--rows", nargs="+", default=["smax-3m", "raidjax-jaxmarl", "raidjax-shared", "raidjax-per-arena"])
+    ap.add_argument("--learner", action="store_true",
+                    help="keep every observation and draw actions among the available ones (a learner's rollout)")
     args = ap.parse_args()
 
     from jaxmarl import make
@@ -113,16 +144,17 @@ def main() -> None:
         batch = jax.tree.map(lambda x: jnp.broadcast_to(x, (n,) + x.shape), params)  # noqa: B023
         makers = {
             "smax-3m": lambda: jaxmarl_rollout(make("HeuristicEnemySMAX", scenario=map_name_to_scenario("3m")),
-                                               n, args.steps),  # noqa: B023
-            "raidjax-jaxmarl": lambda: jaxmarl_rollout(RaidMultiAgentEnv(params), n, args.steps),  # noqa: B023
-            "raidjax-shared": lambda: raidjax_rollout(params, n, args.steps, per_arena=False),  # noqa: B023
-            "raidjax-per-arena": lambda: raidjax_rollout(batch, n, args.steps, per_arena=True),  # noqa: B023
+                                               n, args.steps, args.learner),  # noqa: B023
+            "raidjax-jaxmarl": lambda: jaxmarl_rollout(RaidMultiAgentEnv(params), n, args.steps, args.learner),  # noqa: B023
+            "raidjax-shared": lambda: raidjax_rollout(params, n, args.steps, False, args.learner),  # noqa: B023
+            "raidjax-per-arena": lambda: raidjax_rollout(batch, n, args.steps, True, args.learner),  # noqa: B023
         }
         for name in args.rows:
             rows.append({"env": name, "arenas": n, **measure(makers[name](), n, args.steps, args.repeats)})
             print(json.dumps(rows[-1]), flush=True)
     print(json.dumps({"benchmark": "vs_smax", "machine": machine(load=True),
-                      "steps": args.steps, "raidjax_substeps": args.substeps, "rows": rows}))
+                      "steps": args.steps, "raidjax_substeps": args.substeps, "learner": args.learner,
+                      "rows": rows}))
 
 
 if __name__ == "__main__":

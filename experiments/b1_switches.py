@@ -11,7 +11,7 @@ chain position (``trainers.runs.chained_win_rates``):
     python -m experiments.b1_switches runs/b1 --games 1000 --out runs/b1/switches.jsonl
 
 A finished ``raidjax train mapoca`` run folder (one skill range, three mages) works too: its seeds
-are the teams.
+are the teams, played greedily if the run's ``deterministic_eval`` says so (rows: ``greedy``).
 
 It needs only the table runs' final checkpoint (their group, ``checkpoints/mapoca/group0``), so it
 runs as soon as that group has trained.
@@ -43,7 +43,7 @@ def _content(skill_range: float, switch: str):
 
 
 def table_teams(run_dir: Path):
-    """``(actor, weights with a leading axis T, the T table runs, senses)`` of a Benchmark 1 run
+    """``(actor, weights with a leading axis T, the T table runs, senses, greedy)`` of a Benchmark 1 run
     folder's table runs, all in its first training group (``benchmark1.load_group_actors``)."""
     from experiments import benchmark1 as b1
 
@@ -53,7 +53,8 @@ def table_teams(run_dir: Path):
     actor, weights, senses = b1.load_group_actors(run_dir, scale, runs, settings["seed"], protocol, 0)
     members = [runs[i] for i in b1.groups_of(len(runs), scale.runs_per_program)[0]]
     table = [j for j, m in enumerate(members) if m["group"] == "table"]
-    return actor, jax.tree.map(lambda x: x[jnp.asarray(table)], weights), [members[j] for j in table], senses
+    return (actor, jax.tree.map(lambda x: x[jnp.asarray(table)], weights), [members[j] for j in table], senses,
+            False)  # Benchmark 1's teams sample
 
 
 def trained_teams(run_dir: Path):
@@ -72,7 +73,7 @@ def trained_teams(run_dir: Path):
     loaded = [load_policy(run_dir, seed=i) for i in range(settings["seeds"])]  # one policy, a weights tree per seed
     weights = jax.tree.map(lambda *w: jnp.stack(w), *[w for _, w in loaded])
     teams = [{"ranges": tuple(cfg.skill_ranges), "seed": i} for i in range(settings["seeds"])]
-    return loaded[0][0].actor, weights, teams, loaded[0][0].senses
+    return loaded[0][0].actor, weights, teams, loaded[0][0].senses, loaded[0][0].deterministic
 
 
 def evaluate(run_dir: Path, games: int, seed: int = 4242) -> list[dict]:
@@ -84,7 +85,7 @@ def evaluate(run_dir: Path, games: int, seed: int = 4242) -> list[dict]:
     from trainers.runs import chained_win_rates
 
     trainer = json.loads((run_dir / "config.json").read_text()).get("trainer")
-    actor, weights, teams, senses = trained_teams(run_dir) if trainer == "mapoca" else table_teams(run_dir)
+    actor, weights, teams, senses, greedy = trained_teams(run_dir) if trainer == "mapoca" else table_teams(run_dir)
     k = auto_games_per_arena(games)
     key = jax.random.PRNGKey(seed)
 
@@ -94,8 +95,10 @@ def evaluate(run_dir: Path, games: int, seed: int = 4242) -> list[dict]:
 
     rows = []
     for switch in SWITCHES:
-        out = per_team(key, actor, weights, _stack([_content(t["ranges"][0], switch) for t in teams]), play, senses)
+        out = per_team(key, actor, weights, _stack([_content(t["ranges"][0], switch) for t in teams]), play, senses,
+                       greedy)
         rows += [{"switch": switch, "range": t["ranges"][0], "agent": "MA-POCA", "seed": t["seed"], "senses": senses,
+                  "greedy": greedy,
                   **chained_win_rates(jax.tree.map(lambda x, i=i: x[i], out))} for i, t in enumerate(teams)]
         for rg in sorted({t["ranges"][0] for t in teams}):
             rows.append({"switch": switch, "range": rg, "agent": "PT-HR",

@@ -278,7 +278,7 @@ def load_actors(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, p
     return actor, jax.tree.map(lambda *w: jnp.concatenate(w), *[w for _, w, _ in loaded]), senses
 
 
-def per_team(key, actor, weights, contents, measure, senses: str = "raidjax") -> jax.Array:
+def per_team(key, actor, weights, contents, measure, senses: str = "raidjax", greedy: bool = False) -> jax.Array:
     """``measure(key, content, policy)`` of C (team, content) cells, vmapped in one program.
 
     Args:
@@ -286,6 +286,8 @@ def per_team(key, actor, weights, contents, measure, senses: str = "raidjax") ->
         actor: the actor module; weights: its parameters with a leading axis C.
         contents: ``Params`` with a leading axis C, played with the teams' ``senses``.
         measure: e.g. ``lambda k, c, p: raidjax.playtest(k, c, p, n)["outcome"]``.
+        greedy: the teams play their most likely actions instead of sampling (a run's
+            ``deterministic_eval``; Benchmark 1's teams sample, as its runs' config says).
 
     Returns:
         ``measure``'s output with a leading axis C.
@@ -293,7 +295,7 @@ def per_team(key, actor, weights, contents, measure, senses: str = "raidjax") ->
 
     def one(k, w, content):
         def policy(kk, obs, state, params):
-            return sample_actions(kk, actor.apply(w, obs), obs.alive)[0]
+            return sample_actions(kk, actor.apply(w, obs), obs.alive, greedy)[0]
 
         return measure(k, raidjax.with_senses(content, senses), policy)
 

@@ -175,7 +175,8 @@ def test_switches_play_a_trained_mapoca_run_folder(tmp_path):
 
     cfg = tmp_path / "tiny.json"
     cfg.write_text(json.dumps({"n_arenas": 4, "n_steps": 8, "n_minibatches": 2, "update_epochs": 1, "hidden": 8,
-                               "layers": 1, "heads": 1, "updates_per_chunk": 1, "senses": "reference"}))
+                               "layers": 1, "heads": 1, "updates_per_chunk": 1, "senses": "reference",
+                               "deterministic_eval": True}))
     run_dir = tmp_path / "run"
     mapoca_cli.main(["--config", str(cfg), "--total-steps", "32", "--skill-range", "13", "--seeds", "2",
                      "--eval-games", "0", "--out", str(run_dir)])
@@ -184,7 +185,36 @@ def test_switches_play_a_trained_mapoca_run_folder(tmp_path):
     rows = [json.loads(s) for s in out.read_text().splitlines()]
     assert sorted((r["switch"], r["agent"], r.get("seed"), r["range"]) for r in rows) == sorted(
         (s, a, i, 13.0) for s in b1_switches.SWITCHES for a, i in (("MA-POCA", 0), ("MA-POCA", 1), ("PT-HR", None)))
-    assert all(r["senses"] == "reference" for r in rows if r["agent"] == "MA-POCA")
+    assert all(r["senses"] == "reference" and r["greedy"] for r in rows if r["agent"] == "MA-POCA")
     (run_dir / "result.json").unlink()
     with pytest.raises(ValueError, match="has not finished"):
         b1_switches.evaluate(run_dir, 20)
+
+
+def test_per_team_plays_greedily_only_when_asked():
+    """``per_team(greedy=True)`` plays each team's most likely actions (a run's ``deterministic_eval``);
+    by default it samples, so different keys give different actions."""
+    import jax
+    import jax.numpy as jnp
+
+    import raidjax
+    from trainers.networks import Actor
+
+    actor = Actor(16, 1, 1, False)
+    content = raidjax.make_params(skill_range=13.0)
+    obs0, _ = raidjax.reset(jax.random.PRNGKey(0), content)
+    w = actor.init(jax.random.PRNGKey(1), obs0)
+    weights = jax.tree.map(lambda x: jnp.stack([x, x * 3.0]), w)  # two teams
+    contents = jax.tree.map(lambda x: jnp.stack([x, x]), content)
+
+    def first_actions(k, c, policy):
+        obs, state = raidjax.reset(jax.random.PRNGKey(0), c)
+        return policy(k, obs, state, c)
+
+    want = jnp.stack([jnp.argmax(actor.apply(jax.tree.map(lambda x, i=i: x[i], weights), obs0), -1) for i in (0, 1)])
+    for seed in range(3):
+        got = benchmark1.per_team(jax.random.PRNGKey(seed), actor, weights, contents, first_actions, greedy=True)
+        np.testing.assert_array_equal(got, want)
+    sampled = {tuple(np.asarray(benchmark1.per_team(jax.random.PRNGKey(s), actor, weights, contents,
+                                                    first_actions)).ravel()) for s in range(8)}
+    assert len(sampled) > 1

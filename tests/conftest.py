@@ -44,18 +44,3 @@ settings.load_profile("raidjax")
 def ref_params() -> raidjax.Params:
     """The reference content (three mages with MagicMissile at range 5 against the Dragon)."""
     return raidjax.make_params()
-
-
-# The slowest files first (by the time each took with 2 workers on a 2-core machine like CI's, 2026-11-27):
-# pytest-xdist hands out whole files (``--dist loadfile``) in collection order, so starting the
-# longest ones first leaves no worker idle behind a long file at the end.
-SLOW_FIRST = ("test_balance.py", "test_playtest.py", "test_faults_mapoca.py", "test_sharding.py", "test_pcg.py",
-              "test_faults_ppo.py", "test_wrappers.py", "test_rules.py", "test_house.py", "test_benchmark2.py",
-              "test_benchmark1.py", "test_api.py", "test_mapoca.py", "test_protocols.py", "test_notebooks.py",
-              "test_mapoca_reference.py", "test_lanes.py", "test_pcg_style.py", "test_cli.py", "test_golden.py",
-              "test_reference_observation.py", "test_xla_flags.py", "test_validation.py")
-
-
-def pytest_collection_modifyitems(items):
-    rank = {name: i for i, name in enumerate(SLOW_FIRST)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(SLOW_FIRST)))  # stable: file order kept otherwise

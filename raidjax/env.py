@@ -169,7 +169,12 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
     # Each phase's new state is materialised (``lanes.materialize``; the leaves it did not change
     # are already in memory) so that XLA:CPU does not recompute a phase inside every consumer.
     with jax.named_scope("movement"):
-        state = movement.move_players(state, actions, params, dt)
+        # A batch that no learner (or no PT-HR script) moves in skips the other's work: its values
+        # are then never selected, so the state is the same to the bit.
+        scripted = actions == ACTION_HEURISTIC
+        learner = lanes.if_any(~scripted, lambda: _learner_moves(state, actions, params, dt))
+        script = lanes.if_any(scripted, lambda: heuristic.scripted_moves(state, params, actions.shape[0], dt))
+        state = movement.place_players(state, actions, learner, script)
         still = _boss_still_ticks(state, params, n_ticks)
         state = movement.move_boss(state, params, dt, (n_ticks - still) * TICK)
         state = movement.clamp_to_walls(state, params)
@@ -228,6 +233,14 @@ def _advance(seeds, state: State, actions, params: Params):
     # A scan compiles the sub-step once, whatever n_substeps is.
     (new, to_boss, back), _ = jax.lax.scan(one_substep, (state, *zeros), (seeds, jnp.arange(seeds.shape[0])))
     return new, to_boss, back
+
+
+def _learner_moves(state: State, actions, params: Params, dt: float):
+    """``movement.learner_moves`` with the turned headings' unit vectors computed once into memory
+    (``lanes.computed``): both the position and the velocity read them."""
+    heading = movement.turned(state, actions, dt)
+    fwd = lanes.computed(lambda: movement.heading_vec(heading))
+    return movement.learner_moves(state, actions, params, dt, heading, fwd)
 
 
 # Under vmap the sub-steps run on the lane layout: the arena axis last (raidjax.lanes).

@@ -11,8 +11,7 @@ import math
 
 import jax.numpy as jnp
 
-from raidjax import heuristic
-from raidjax.lanes import any_, argmin, computed, if_any, lane_function, pick
+from raidjax.lanes import any_, argmin, lane_function, pick
 from raidjax.types import (
     ACTION_HEURISTIC,
     BACKWARD,
@@ -61,43 +60,53 @@ def impulse_integrals(n_ticks: int) -> tuple[float, float, float]:
 
 
 @lane_function
-def move_players(state: State, actions: jnp.ndarray, params: Params, dt: float) -> State:
-    """Apply ``actions: int32[P, ...]`` for ``dt`` seconds to the players (the boss is untouched).
+def turned(state: State, actions: jnp.ndarray, dt: float) -> jnp.ndarray:
+    """The players' headings ``float32[P, ...]`` after ``actions: int32[P, ...]`` rotate them for
+    ``dt`` seconds (a learner's decision rotates or translates, rotation first)."""
+    turn = jnp.where(actions == ROTATE_LEFT, 1.0, jnp.where(actions == ROTATE_RIGHT, -1.0, 0.0))
+    return state.heading[:actions.shape[0]] + turn * TURN_RATE * dt
 
-    Learner actions use the velocity-impulse/drag model; ``ACTION_HEURISTIC`` moves the
-    player by setting its position (GAME.md §9). Dead players do not move.
+
+@lane_function
+def learner_moves(state: State, actions: jnp.ndarray, params: Params, dt: float, heading: jnp.ndarray,
+                  fwd: jnp.ndarray):
+    """Where ``actions: int32[P, ...]`` move the players in ``dt`` seconds under the velocity-impulse
+    model (GAME.md §9), given their turned ``heading`` (``turned``) and its unit vectors ``fwd``
+    (``heading_vec(heading)``, ``float32[P, 2, ...]``).
+
+    Returns:
+        ``(pos float32[P, 2, ...], vel float32[P, 2, ...], heading float32[P, ...])`` of every player
+        as if it were a learner (``place_players`` keeps what applies).
     """
     n_players = actions.shape[0]
-    n_ticks = round(dt / TICK)
-    dn, s, c0, ca = impulse_integrals(n_ticks)
-    pos, vel, heading = state.pos[:n_players], state.vel[:n_players], state.heading[:n_players]
+    dn, s, c0, ca = impulse_integrals(round(dt / TICK))
+    pos, vel = state.pos[:n_players], state.vel[:n_players]
     speed = params.stats.move_speed[:n_players]
-    alive = state.alive[:n_players]
+    left = jnp.stack([-fwd[:, 1], fwd[:, 0]], axis=1)
+    thrust = (
+        (actions == FORWARD)[:, None] * fwd
+        - (actions == BACKWARD)[:, None] * fwd
+        + STRAFE_FACTOR * (actions == STRAFE_LEFT)[:, None] * left
+        - STRAFE_FACTOR * (actions == STRAFE_RIGHT)[:, None] * left
+    ) * speed[:, None]
+    return pos + c0 * vel + ca * thrust, dn * vel + s * thrust, heading
 
-    scripted = actions == ACTION_HEURISTIC
 
-    def learner_moves():  # the velocity-impulse model; rotation first (a decision rotates or translates)
-        turn = jnp.where(actions == ROTATE_LEFT, 1.0, jnp.where(actions == ROTATE_RIGHT, -1.0, 0.0))
-        new_heading = heading + turn * TURN_RATE * dt
-        fwd = computed(lambda: heading_vec(new_heading))  # once: both directions below read it
-        left = jnp.stack([-fwd[:, 1], fwd[:, 0]], axis=1)
-        thrust = (
-            (actions == FORWARD)[:, None] * fwd
-            - (actions == BACKWARD)[:, None] * fwd
-            + STRAFE_FACTOR * (actions == STRAFE_LEFT)[:, None] * left
-            - STRAFE_FACTOR * (actions == STRAFE_RIGHT)[:, None] * left
-        ) * speed[:, None]
-        return pos + c0 * vel + ca * thrust, dn * vel + s * thrust, new_heading
-
-    # A batch that no learner (or no PT-HR script) moves in skips the other's work (lanes.if_any):
-    # the values are then never selected, so the state is the same to the bit.
-    learner_pos, learner_vel, learner_heading = if_any(~scripted, learner_moves)
-    h_pos, h_heading = if_any(scripted, lambda: heuristic.scripted_moves(state, params, n_players, dt))
-
-    new_pos = jnp.where(scripted[:, None], h_pos, learner_pos)
-    new_vel = jnp.where(scripted[:, None], 0.0, learner_vel)
-    new_heading = jnp.where(scripted, h_heading, learner_heading)
-    keep = ~alive
+@lane_function
+def place_players(state: State, actions: jnp.ndarray, learner, scripted) -> State:
+    """The players after their moves: ``learner`` (``learner_moves``' triple) where ``actions:
+    int32[P, ...]`` are learner actions, ``scripted`` (``heuristic.scripted_moves``' ``(pos, heading)``)
+    where they are ``ACTION_HEURISTIC`` (which sets the position: no velocity); dead players stay
+    where they are. The boss is untouched."""
+    n_players = actions.shape[0]
+    pos, heading = state.pos[:n_players], state.heading[:n_players]
+    learner_pos, learner_vel, learner_heading = learner
+    h_pos, h_heading = scripted
+    is_scripted = actions == ACTION_HEURISTIC
+    new_pos = jnp.where(is_scripted[:, None], h_pos, learner_pos)
+    new_vel = jnp.where(is_scripted[:, None], 0.0, learner_vel)
+    new_heading = jnp.where(is_scripted, h_heading, learner_heading)
+    keep = ~state.alive[:n_players]
     new_pos = jnp.where(keep[:, None], pos, new_pos)
     new_vel = jnp.where(keep[:, None], 0.0, new_vel)
     new_heading = jnp.where(keep, heading, new_heading)

@@ -99,9 +99,14 @@ def redraw(key: jax.Array, config: Config, redrawn: jax.Array, skills: jax.Array
         ``(skills float32[N, K], state [N], obs [N])``, the others' unchanged.
     """
     n = skills.shape[0]
-    pick = lambda a, b: jnp.where(redrawn.reshape((n,) + (1,) * (a.ndim - 1)), a, b)
     skills = jnp.where(redrawn[:, None], draw_skills(key, config, range_set, n), skills)
     drawn = params_of(skills)
     if config.senses == "reference":
-        state = jax.tree.map(pick, jax.vmap(start_memory)(state, drawn), state)
-    return skills, state, jax.tree.map(pick, jax.vmap(raidjax.observe)(state, drawn), obs)
+        state = where_arenas(redrawn, jax.vmap(start_memory)(state, drawn), state)
+    return skills, state, where_arenas(redrawn, jax.vmap(raidjax.observe)(state, drawn), obs)
+
+
+def where_arenas(mask: jax.Array, new, old):
+    """``new`` in the arenas where ``mask: bool[N]`` holds, ``old`` elsewhere (pytrees of ``[N, ...]``
+    arrays of the same structure)."""
+    return jax.tree.map(lambda a, b: jnp.where(mask.reshape((-1,) + (1,) * (a.ndim - 1)), a, b), new, old)

@@ -42,7 +42,7 @@ from raidjax.env import team_reward
 from raidjax.types import WIN, Observation, Params, State
 from trainers import checkpoint
 from trainers.config import Config
-from trainers.curriculum import draw_skills, next_draws, range_table, redraw, with_drawn
+from trainers.curriculum import draw_skills, next_draws, range_table, redraw, where_arenas, with_drawn
 from trainers.networks import Actor, Critic, sample_actions
 
 
@@ -232,8 +232,7 @@ def fresh_start(key: jax.Array, p: float, done: jax.Array, state: State, obs: Ob
     k_coin, k_reset = jax.random.split(key)
     fresh = done & (jax.random.uniform(k_coin, (n,)) < p)
     obs_f, state_f = jax.vmap(raidjax.reset)(jax.random.split(k_reset, n), params)
-    pick = lambda a, b: jnp.where(fresh.reshape((n,) + (1,) * (a.ndim - 1)), a, b)
-    return jax.tree.map(pick, state_f, state), jax.tree.map(pick, obs_f, obs)
+    return where_arenas(fresh, state_f, state), where_arenas(fresh, obs_f, obs)
 
 
 def make_trainer(config: Config, base_params: Params | None = None, redraw_ranges: bool | None = None,

@@ -240,7 +240,7 @@ def _learner_moves(state: State, actions, params: Params, dt: float):
     (``lanes.computed``): both the position and the velocity read them."""
     heading = movement.turned(state, actions, dt)
     fwd = lanes.computed(lambda: movement.heading_vec(heading))
-    return movement.learner_moves(state, actions, params, dt, heading, fwd)
+    return (*movement.learner_moves(state, actions, params, dt, fwd), heading)
 
 
 # Under vmap the sub-steps run on the lane layout: the arena axis last (raidjax.lanes).

@@ -68,15 +68,14 @@ def turned(state: State, actions: jnp.ndarray, dt: float) -> jnp.ndarray:
 
 
 @lane_function
-def learner_moves(state: State, actions: jnp.ndarray, params: Params, dt: float, heading: jnp.ndarray,
-                  fwd: jnp.ndarray):
+def learner_moves(state: State, actions: jnp.ndarray, params: Params, dt: float, fwd: jnp.ndarray):
     """Where ``actions: int32[P, ...]`` move the players in ``dt`` seconds under the velocity-impulse
-    model (GAME.md §9), given their turned ``heading`` (``turned``) and its unit vectors ``fwd``
-    (``heading_vec(heading)``, ``float32[P, 2, ...]``).
+    model (GAME.md §9), given the unit vectors ``fwd: float32[P, 2, ...]`` of their turned headings
+    (``heading_vec(turned(...))``).
 
     Returns:
-        ``(pos float32[P, 2, ...], vel float32[P, 2, ...], heading float32[P, ...])`` of every player
-        as if it were a learner (``place_players`` keeps what applies).
+        ``(pos float32[P, 2, ...], vel float32[P, 2, ...])`` of every player as if it were a learner
+        (``place_players`` keeps what applies).
     """
     n_players = actions.shape[0]
     dn, s, c0, ca = impulse_integrals(round(dt / TICK))
@@ -89,12 +88,13 @@ def learner_moves(state: State, actions: jnp.ndarray, params: Params, dt: float,
         + STRAFE_FACTOR * (actions == STRAFE_LEFT)[:, None] * left
         - STRAFE_FACTOR * (actions == STRAFE_RIGHT)[:, None] * left
     ) * speed[:, None]
-    return pos + c0 * vel + ca * thrust, dn * vel + s * thrust, heading
+    return pos + c0 * vel + ca * thrust, dn * vel + s * thrust
 
 
 @lane_function
 def place_players(state: State, actions: jnp.ndarray, learner, scripted) -> State:
-    """The players after their moves: ``learner`` (``learner_moves``' triple) where ``actions:
+    """The players after their moves: ``learner`` (``(pos, vel, heading)``: ``learner_moves`` and
+    ``turned``) where ``actions:
     int32[P, ...]`` are learner actions, ``scripted`` (``heuristic.scripted_moves``' ``(pos, heading)``)
     where they are ``ACTION_HEURISTIC`` (which sets the position: no velocity); dead players stay
     where they are. The boss is untouched."""

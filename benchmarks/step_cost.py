@@ -2,7 +2,7 @@
 sub-step, and the fusions, copies and loops of the compiled decision.
 
 The sub-step figures come from XLA's cost analysis of a program that runs exactly one sub-step
-(``raidjax.env.substep`` in the lane layout, ``raidjax.lanes``, as ``env.advance`` runs it, vmapped
+(``raidjax.phases.substep`` in the lane layout, ``raidjax.lanes``, as ``env.advance`` runs it, vmapped
 over ``--arenas`` arenas; the state's moves into and out of the layout included); they are divided by the arena count,
 never derived from the decision's program (XLA counts a loop body once, so a 5-sub-step decision
 "as counted" looks like one sub-step). On an accelerator the bytes bound the speed, so this
@@ -26,8 +26,8 @@ from env_throughput import arenas
 
 import raidjax
 from raidjax import combat, lanes
-from raidjax.env import substep
 from raidjax.io import machine
+from raidjax.phases import substep
 from raidjax.types import TICKS_PER_DECISION
 from raidjax.utils import dice_seeds
 

@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from raidjax.lanes import any_, argmin, computed, cumsum, first_true, if_any, lane_function, one_hot, pick, total
+from raidjax.lanes import any_, argmin, cumsum, first_true, lane_function, one_hot, pick, total
 from raidjax.movement import nearest_alive_player, norm, set_boss
 from raidjax.types import (
     HIT_ATTACK,
@@ -206,8 +206,8 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
 
     Returns ``(state, instant_hits, instant_from: float32[U*S, 2, ...], spawns)`` where ``instant_hits =
     (hit: bool[U*S, ...], unit: int32[U*S, ...])`` (an instant skill hits its target) and ``spawns``
-    (``Spawns``) says which request each free pool slot takes (``spawn`` writes them:
-    ``raidjax.projectiles.fly`` does, block by block).
+    (``Spawns``) holds the projectiles and areas requested, their slots not yet taken
+    (``slot_match`` and ``take_slots`` assign them, ``spawn`` writes them).
     The boss re-picks its target (nearest alive player) as its skills fire; straight missiles keep
     the facing the caster had.
     """
@@ -217,7 +217,7 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
     b = u_n - 1
     # Straight missiles fly along the facing the caster had while casting (the boss faced its
     # old target); the re-picked target matters for homing, instant and area delivery.
-    facing = computed(lambda: jnp.stack([jnp.cos(state.heading), jnp.sin(state.heading)], axis=1))
+    facing = jnp.stack([jnp.cos(state.heading), jnp.sin(state.heading)], axis=1)
     boss_fired = any_(fired[b])
     new_t = jnp.where(boss_fired, nearest_alive_player(state), state.target[b])
     to_t = pick(state.pos, new_t[None]) - state.pos[b]
@@ -235,24 +235,36 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
 
     r = u_n * s_n
     req = (fired & ~instant).reshape((r,) + lanes)
-    p = state.projectiles
-    free = ~p.live
-    req_rank = jnp.where(req, cumsum(req) - 1, -1)
-    free_rank = jnp.where(free, cumsum(free) - 1, -2)
-    assign = computed(lambda: req_rank[:, None] == free_rank[None])  # [R, M, ...]: request r -> slot m
-    got = any_(assign)
-    src = first_true(assign)  # [M, ...] request feeding each slot
     area_life = TICK if params.config.one_step_area else AREA_LIFETIME
     life = jnp.where(region, area_life, MISSILE_LIFETIME)
     per_request = lambda x: jnp.broadcast_to(x, fired.shape).reshape((r,) + lanes)  # noqa: E731
-    spawns = Spawns(got=got, src=src, pos=spawn_pos.reshape((r, 2) + lanes), kind=per_request(kind),
+    spawns = Spawns(requested=req, got=None, src=None, pos=spawn_pos.reshape((r, 2) + lanes), kind=per_request(kind),
                     target=per_request(target), tick=per_request(fired_tick), life=per_request(life), facing=facing)
-    dropped = total(req) - total(got)
     inst = (fired & instant).reshape((r,) + lanes)
     inst_target = target.reshape((r,) + lanes)
     instant_hits = (inst & pick(state.alive, inst_target), inst_target)
-    state = state.replace(dropped=state.dropped + dropped)
     return state, instant_hits, caster.reshape((r, 2) + lanes), spawns
+
+
+@lane_function
+def slot_match(requested: jnp.ndarray, live: jnp.ndarray) -> jnp.ndarray:
+    """``bool[R, M, ...]``: request r takes pool slot m. The k-th request (in unit, then slot order)
+    takes the k-th free slot (lowest first); requests beyond the free slots take none.
+    ``requested``: ``Spawns.requested``, ``bool[R, ...]``; ``live``: the pool's ``bool[M, ...]``."""
+    free = ~live
+    req_rank = jnp.where(requested, cumsum(requested) - 1, -1)
+    free_rank = jnp.where(free, cumsum(free) - 1, -2)
+    return req_rank[:, None] == free_rank[None]
+
+
+@lane_function
+def take_slots(state: State, spawns: Spawns, match: jnp.ndarray) -> tuple[State, Spawns]:
+    """``spawns`` with the slots its requests take (``got``, ``src``, from ``slot_match``'s ``match``),
+    and the state with the requests that found no free slot counted in ``dropped``."""
+    got = any_(match)
+    src = first_true(match)  # [M, ...] request feeding each slot
+    state = state.replace(dropped=state.dropped + (total(spawns.requested) - total(got)))
+    return state, spawns.replace(got=got, src=src)
 
 
 @lane_function
@@ -266,9 +278,9 @@ def spawn(p: Projectiles, spawns: Spawns, n_ticks: int) -> tuple[Projectiles, jn
     s_n = spawns.kind.shape[0] // spawns.facing.shape[0]
     owner, slot = jax.lax.div(src, s_n), jax.lax.rem(src, s_n)  # request r is unit r // S's slot r % S
     # Each slot's request, by selects over the R requests (and the caster's facing over U units).
-    pos, kind, target, tick, life, direction = computed(lambda: (
+    pos, kind, target, tick, life, direction = (
         pick(spawns.pos, src[:, None]), pick(spawns.kind, src), pick(spawns.target, src), pick(spawns.tick, src),
-        pick(spawns.life, src), pick(spawns.facing, owner[:, None])))
+        pick(spawns.life, src), pick(spawns.facing, owner[:, None]))
     g = got[:, None]
     p = Projectiles(
         live=p.live | got,
@@ -362,29 +374,24 @@ def touchable(effects: Effects, params: Params, alive: jnp.ndarray) -> jnp.ndarr
 @lane_function
 def unit_columns(state: State, params: Params, facing: jnp.ndarray | None = None) -> dict[str, jnp.ndarray]:
     """Per-unit columns ``float32[U, ...]`` a hit reads from the unit it touches (position, rear
-    direction, evasion, agility, parry, armour factor, team), computed once into memory: tiny, and
-    read by every hit event (cos and sin are dear).
+    direction, evasion, agility, parry, armour factor, team): read by every hit event of a sub-step.
 
     ``facing``: ``fire``'s ``float32[U, 2, ...]`` (cos and sin of the headings before the boss turned
     to fire), if at hand: only the boss's are then computed again, the players' being the same.
     """
     st = params.stats
-
-    def columns():
-        if facing is None:
-            cos_h, sin_h = jnp.cos(state.heading), jnp.sin(state.heading)
-        else:
-            boss = state.heading[-1:]
-            cos_h = jnp.concatenate([facing[:-1, 0], jnp.cos(boss)])
-            sin_h = jnp.concatenate([facing[:-1, 1], jnp.sin(boss)])
-        return {
-            "x": state.pos[:, 0], "y": state.pos[:, 1], "back_x": -cos_h, "back_y": -sin_h,
-            "evasion": st.evasion, "agility": st.agility, "parry": st.parry,
-            "armor": (1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0),
-            "team": params.team.astype(jnp.float32),
-        }
-
-    return computed(columns)
+    if facing is None:
+        cos_h, sin_h = jnp.cos(state.heading), jnp.sin(state.heading)
+    else:
+        boss = state.heading[-1:]
+        cos_h = jnp.concatenate([facing[:-1, 0], jnp.cos(boss)])
+        sin_h = jnp.concatenate([facing[:-1, 1], jnp.sin(boss)])
+    return {
+        "x": state.pos[:, 0], "y": state.pos[:, 1], "back_x": -cos_h, "back_y": -sin_h,
+        "evasion": st.evasion, "agility": st.agility, "parry": st.parry,
+        "armor": (1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0),
+        "team": params.team.astype(jnp.float32),
+    }
 
 
 class HitSums(NamedTuple):
@@ -404,40 +411,17 @@ class HitSums(NamedTuple):
 
 
 @lane_function
-def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, resolved=None):
-    """Apply damage and heals of a sub-step's hit events to the units.
-
-    The ``E`` events come in groups (the pool, instant skills, basic attacks) resolved one by one
-    with no concatenation; event ``e`` of the sub-step rolls dice ``(d * E + e) * U + u`` against unit u.
-
-    Args:
-        seeds: ``uint32[2, ...]`` dice seeds (``utils.dice_seeds``) for crits, dodges and parries.
-        groups: a sequence of ``(effects, owner, hits, from_pos)``: ``Effects`` of ``n`` events (each
-            event's source, ``event_sources``), ``int32[n, ...]`` the unit it comes from, the units
-            it touches and ``float32[n, 2, ...]`` where it comes from (back attacks). ``hits`` is
-            ``bool[n, U, ...]``, or ``(hit: bool[n, ...], unit: int32[n, ...])`` for events that touch
-            at most one unit (only that unit's dice and damage are computed).
-        unit_cols: ``unit_columns(state, params)`` if already computed.
-        resolved: ``(n, HitSums)``: ``n`` events resolved already (the pool's, ``raidjax.projectiles.fly``)
-            as events ``0..n-1``, and what they add up to; ``groups`` follow them.
+def apply_hits(state: State, params: Params, sums: HitSums):
+    """Apply what a sub-step's hit events add up to (``HitSums``, every group's ``group_sums`` added)
+    to the units: damage, then heals of the survivors (capped at max HP); a unit at 0 HP dies.
 
     Returns:
         ``(state, dealt_to_boss: float32[U, ...], back: int32[U, ...])`` by owner.
     """
-    st = params.stats
-    u_n = state.hp.shape[0]
-    lanes = state.hp.shape[1:]
-    offset, sums = resolved if resolved is not None else (0, HitSums(*(0.0,) * 5))
-    e_n = offset + sum(g[0].base.shape[0] for g in groups)
-    unit_cols = unit_columns(state, params) if unit_cols is None else unit_cols
-    for f, owner, hits, from_pos in groups:
-        sums = sums.plus(group_sums(seeds, unit_cols, f, owner, hits, from_pos, e_n, offset, u_n, lanes))
-        offset += f.base.shape[0]
     damage_in, heal_in, dealt, dealt_to_boss, back_count = sums
-
     hp = state.hp - damage_in
     alive = state.alive & (hp > 0)
-    hp = jnp.where(alive, jnp.minimum(hp + heal_in, st.max_hp), 0.0)  # HP floors at 0
+    hp = jnp.where(alive, jnp.minimum(hp + heal_in, params.stats.max_hp), 0.0)  # HP floors at 0
     back_count = back_count.astype(jnp.int32)
     died = state.alive & ~alive
     state = state.replace(
@@ -450,39 +434,49 @@ def resolve_hits(seeds, state: State, params: Params, groups, unit_cols=None, re
     return state, dealt_to_boss, back_count
 
 
-@lane_function(lane_shape="lanes", shared=("first",))
-def group_sums(seeds, unit_cols, f, owner, hits, from_pos, n_events: int, first, u_n: int, lanes: tuple):
-    """Resolve one group of hit events (``resolve_hits``' groups, or a block of the pool's).
+class HitOutcomes(NamedTuple):
+    """What each of a group's hit events does to the units it touches, ``[n, ...]`` for events that
+    touch at most one unit or ``[n, U, ...]``: ``harm`` (bool: it damages), ``healed`` (bool: it
+    heals), ``back`` (bool: it comes from behind), ``mult`` (float32: crit, back, versatility, armour
+    and parry factors together)."""
 
-    A group that no arena of the batch hits with is skipped (``lanes.if_any``; the reference content
-    has no instant skills and no basic attacks): its sums are zeros, and every sum is of whole
-    points, so adding them or not gives the same bits.
+    harm: jax.Array
+    healed: jax.Array
+    back: jax.Array
+    mult: jax.Array
+
+
+@lane_function(lane_shape="lanes", shared=("first",))
+def hit_outcomes(seeds, unit_cols, f, hits, from_pos, n_events: int, first, u_n: int, lanes: tuple) -> HitOutcomes:
+    """The dice and modifiers of one group of a sub-step's hit events (``group_sums`` adds them up).
+
+    A sub-step's ``E`` hit events come in groups (the pool's projectiles, block by block, then every
+    unit's ``S`` instant skill slots, then every unit's basic attack). Die ``d`` of event ``e`` on
+    unit ``u`` is die number ``(d * E + e) * U + u`` of the sub-step.
 
     Args:
-        seeds: ``uint32[2, ...]`` dice seeds; unit_cols: ``unit_columns``' dict of ``float32[U, ...]``.
-        f, owner, hits, from_pos: the group, as in ``resolve_hits`` (``n`` events).
-        n_events: ``E``, the sub-step's events; first: the group's first event (an ``int``, or a traced
-            ``int32[]`` for the pool's blocks): die ``d`` of event ``e`` on unit ``u`` is die number
-            ``(d * E + e) * U + u`` of the sub-step.
+        seeds: ``uint32[2, ...]`` dice seeds (``utils.dice_seeds``) for crits, dodges and parries.
+        unit_cols: ``unit_columns``' dict of ``float32[U, ...]``.
+        f: ``Effects`` of the group's ``n`` events (each event's source, ``event_sources``).
+        hits: the units each event touches: ``bool[n, U, ...]``, or ``(hit: bool[n, ...], unit:
+            int32[n, ...])`` for events that touch at most one unit (only that unit's dice and
+            damage are computed).
+        from_pos: ``float32[n, 2, ...]`` where each event comes from (back attacks).
+        n_events: ``E``; first: the group's first event (an ``int``, or a traced ``int32[]`` for
+            the pool's blocks).
         u_n: ``U``; lanes: the lane axes' shape.
 
     Returns:
-        ``HitSums``.
+        ``HitOutcomes``.
     """
     xp = np if isinstance(first, int) else jnp
     base = (xp.arange(3)[:, None] * n_events + first + xp.arange(f.base.shape[0])[None]) * u_n  # [3, n]
-    hit = hits[0] if isinstance(hits, tuple) else hits
-    return if_any(hit, lambda: _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n, lanes))
-
-
-@lane_function(lane_shape="lanes", shared=("base",))
-def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lanes: tuple):
     single = isinstance(hits, tuple)
     if single:  # one unit per event: [n, ...]
         hit, unit = hits
         from_x, from_y = from_pos[:, 0], from_pos[:, 1]
         index = jnp.asarray(base.reshape(base.shape + (1,) * len(lanes)), jnp.uint32) + unit.astype(jnp.uint32)
-        fc = lambda c, f=f: getattr(f, c)  # noqa: E731
+        col = {k: pick(v, unit) for k, v in unit_cols.items()}
     else:  # every unit: [n, U, ...]
         hit = hits
         from_x, from_y = from_pos[:, 0, None], from_pos[:, 1, None]
@@ -490,45 +484,55 @@ def _group_sums(seeds, unit_cols, f, owner, hits, from_pos, base, u_n: int, lane
         # numpy: the same indices in every lane; traced (the pool's blocks): give it the lane axes.
         index = (index.astype(np.uint32) if isinstance(index, np.ndarray)
                  else index.reshape(index.shape + (1,) * len(lanes)).astype(jnp.uint32))
-        fc = lambda c, f=f: getattr(f, c)[:, None]  # noqa: E731
+        col = {k: v[None] for k, v in unit_cols.items()}
+    fc = lambda c: _per_event(f, c, single)  # noqa: E731
+    dice = hash_dice(seeds, index)
+    crit = dice[0] < fc("crit")
+    relx, rely = from_x - col["x"], from_y - col["y"]
+    length = jnp.maximum(jnp.sqrt(relx * relx + rely * rely), EPS)
+    back = (relx / length) * col["back_x"] + (rely / length) * col["back_y"] >= BACK_ATTACK_COS
+    evasion = col["evasion"] + 0.5 * (col["agility"] - fc("agility"))
+    dodge = dice[1] * 100.0 < evasion
+    parry = dice[2] * 100.0 < col["parry"]
+    mult = (
+        jnp.where(crit, fc("crit_mult"), 1.0)
+        * jnp.where(back, fc("back_mult"), 1.0)
+        * fc("vers")
+        * col["armor"]
+        * jnp.where(parry, PARRY_FACTOR, 1.0)
+    )
+    enemy = fc("team") != col["team"]
+    # Homing and instant hits land on their target whatever the flags: gate them here.
+    harm = hit & enemy & (fc("enemy") > 0) & ~dodge
+    healed = hit & ~enemy & (fc("ally") > 0)
+    return HitOutcomes(harm, healed, back, mult)
 
-    def chain():  # what lands where: [n, ...] or [n, U, ...] each
-        col = {k: pick(v, unit) if single else v[None] for k, v in unit_cols.items()}
-        dice = hash_dice(seeds, index)
-        crit = dice[0] < fc("crit")
-        relx, rely = from_x - col["x"], from_y - col["y"]
-        length = jnp.maximum(jnp.sqrt(relx * relx + rely * rely), EPS)
-        back = (relx / length) * col["back_x"] + (rely / length) * col["back_y"] >= BACK_ATTACK_COS
-        evasion = col["evasion"] + 0.5 * (col["agility"] - fc("agility"))
-        dodge = dice[1] * 100.0 < evasion
-        parry = dice[2] * 100.0 < col["parry"]
-        mult = (
-            jnp.where(crit, fc("crit_mult"), 1.0)
-            * jnp.where(back, fc("back_mult"), 1.0)
-            * fc("vers")
-            * col["armor"]
-            * jnp.where(parry, PARRY_FACTOR, 1.0)
-        )
-        enemy = fc("team") != col["team"]
-        # Homing and instant hits land on their target whatever the flags: gate them here.
-        harm = hit & enemy & (fc("enemy") > 0) & ~dodge
-        healed = hit & ~enemy & (fc("ally") > 0)
-        return harm, healed, back, mult
 
-    # Computed once into memory: otherwise XLA:CPU recomputes the whole chain inside every sum below.
-    harm, healed, back, mult = computed(chain)
+def _per_event(f: Effects, column: str, single: bool) -> jax.Array:
+    """Column ``column`` of ``f``, shaped to broadcast over a group's ``[n, ...]`` or ``[n, U, ...]``."""
+    x = getattr(f, column)
+    return x if single else x[:, None]
+
+
+@lane_function
+def group_sums(outcomes: HitOutcomes, f: Effects, owner, hits, u_n: int) -> HitSums:
+    """What one group of hit events adds up to (``hit_outcomes``' ``outcomes``; ``f``, ``owner`` and
+    ``hits`` as there; ``u_n``: ``U``). Damage is whole points, so every sum is exact in any order, and the groups'
+    sums add up exactly."""
+    single = isinstance(hits, tuple)
+    harm, healed, back, mult = outcomes
+    fc = lambda c: _per_event(f, c, single)  # noqa: E731
     damage = jnp.where(harm, jnp.floor(fc("base") * mult + 1e-3), 0.0)
     heal = jnp.where(healed, fc("heal"), 0.0)
     back_landed = harm & back & (fc("team") == 0)
     if single:  # spread each event's one target over the unit axis
-        on = one_hot(unit, u_n, axis=1)
+        on = one_hot(hits[1], u_n, axis=1)
         damage_u, heal_u = jnp.where(on, damage[:, None], 0.0), jnp.where(on, heal[:, None], 0.0)
         per_event, to_boss, backs = damage, damage_u[:, -1], back_landed
     else:
         damage_u, heal_u = damage, heal
         per_event, to_boss, backs = total(damage, axis=1), damage[:, -1], total(back_landed, axis=1)
     by_owner = one_hot(owner, u_n, axis=1).astype(jnp.float32)  # [n, U, ...]
-    # Damage is whole points, so every sum here is exact in any order.
     return HitSums(total(damage_u), total(heal_u), total(by_owner * per_event[:, None]),
                    total(by_owner * to_boss[:, None]), total(by_owner * backs.astype(jnp.float32)[:, None]))
 

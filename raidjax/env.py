@@ -15,8 +15,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax import combat, heuristic, lanes, movement, projectiles
+from raidjax import combat, lanes, movement
 from raidjax.observation import observe
+from raidjax.phases import advance_lanes, substep  # noqa: F401 (substep: public, raidjax.env.substep)
 from raidjax.reference_observation import remember, start_memory
 from raidjax.types import (
     ACTION_HEURISTIC,
@@ -27,8 +28,6 @@ from raidjax.types import (
     NOOP,
     REFERENCE_ACTIONS,
     RUNNING,
-    TICK,
-    TICKS_PER_DECISION,
     WIN,
     WIN_REWARD,
     Observation,
@@ -115,136 +114,8 @@ def random_spawns(key: jax.Array, params: Params) -> tuple[jax.Array, jax.Array]
     return jnp.stack([x, y], -1), heading
 
 
-@lanes.lane_function
-def _boss_still_ticks(state: State, params: Params, n_ticks: int) -> jnp.ndarray:
-    """``int32[...]``: ticks of this sub-step at whose start the boss is still casting a cast in progress."""
-    b = state.pos.shape[0] - 1
-    fire_tick = combat.ticks_until_expired(state.cast_left[b], params, n_ticks)
-    return lanes.fold(jnp.maximum, jnp.where(state.casting[b], jnp.minimum(fire_tick, n_ticks), 0))
-
-
-@lanes.lane_function
-def _pause_boss_for_new_cast(state: State, before: State, start_pos, params: Params, n_ticks: int) -> State:
-    """Cut the boss's chase in a sub-step where it started a cast to the ticks it was not casting.
-
-    The reference boss chases, then tries its skills, every 0.02 s tick, and stands still from
-    the tick after a cast starts until it fires. With one tick per sub-step that is the order
-    of ``substep``; with several, the boss moved for the whole sub-step before the cast
-    started, so its displacement is scaled to the start tick plus the ticks after the cast fired.
-    """
-    if n_ticks == 1:
-        return state
-    b = state.pos.shape[0] - 1
-    new = state.casting[b] & ~before.casting[b]
-    fire_tick = lanes.fold(jnp.minimum, jnp.where(new, combat.ticks_until_expired(state.cast_left[b], params, n_ticks),
-                                                  n_ticks + 1))
-    moved = jnp.minimum(1 + jnp.maximum(n_ticks - fire_tick, 0), n_ticks)
-    started = lanes.any_(new) & ~lanes.any_(before.casting[b])
-    frac = jnp.where(started, moved / n_ticks, 1.0)
-    pos_b = start_pos[b] + frac * (state.pos[b] - start_pos[b])
-    return state.replace(pos=movement.set_boss(state.pos, pos_b))
-
-
-@lanes.lane_function
-def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int, running=True):
-    """Advance by ``n_ticks`` 0.02 s ticks; a lane function (``raidjax.lanes``: one arena's shapes, then
-    any lane axes ``...``).
-
-    Args:
-        seeds: ``uint32[2, ...]`` dice seeds of this sub-step (``utils.dice_seeds``).
-        state: ``State`` lane arrays; actions: ``int32[P, ...]`` (checked); params: ``Params`` lane arrays.
-        sources: ``combat.effect_sources``' ``(skills, basic)`` ``Effects``.
-        n_ticks: ticks in the sub-step (static).
-        running: ``bool[...]``; where false the projectile pool comes out unchanged to the bit (nothing
-            spawns, nothing flies), so the caller freezes an ended game's other fields only.
-
-    Returns:
-        ``(state, to_boss: float32[U, ...], back: int32[U, ...])``: damage each unit dealt to the boss
-        and back attacks it landed in the sub-step.
-    """
-    dt = n_ticks * TICK
-    start, old_pos = state, state.pos
-    # Named scopes label each phase's operations in compiled programs and profiles
-    # (benchmarks/step_profile.py); they change nothing else.
-    # Each phase's new state is materialised (``lanes.materialize``; the leaves it did not change
-    # are already in memory) so that XLA:CPU does not recompute a phase inside every consumer.
-    with jax.named_scope("movement"):
-        # A batch that no learner (or no PT-HR script) moves in skips the other's work: its values
-        # are then never selected, so the state is the same to the bit.
-        scripted = actions == ACTION_HEURISTIC
-        learner = lanes.if_any(~scripted, lambda: _learner_moves(state, actions, params, dt))
-        script = lanes.if_any(scripted, lambda: heuristic.scripted_moves(state, params, actions.shape[0], dt))
-        state = movement.place_players(state, actions, learner, script)
-        still = _boss_still_ticks(state, params, n_ticks)
-        state = movement.move_boss(state, params, dt, (n_ticks - still) * TICK)
-        state = movement.clamp_to_walls(state, params)
-        state = lanes.materialize(movement.update_moving(state, old_pos, dt), since=start)
-    with jax.named_scope("casting"):
-        before = state
-        state = combat.start_casts(state, params, heuristic.cast_requests(actions, state.casting.shape[1]))
-        state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
-        state, fired_tick = lanes.materialize(combat.advance_casts(state, params, n_ticks), since=before)
-    with jax.named_scope("fire"):
-        state, inst_hits, inst_from, spawns = lanes.computed(
-            lambda state=state: combat.fire(state, params, fired_tick, n_ticks))
-    skills, basic = combat.event_sources(sources, state.hp.ndim - 1)
-    unit_cols = combat.unit_columns(state, params, spawns.facing)  # the pool moves nobody: they serve every hit
-    m = state.projectiles.live.shape[0]
-    with jax.named_scope("projectiles"):
-        state, pool_sums = projectiles.fly(seeds, state, params, sources[0], spawns, n_ticks=n_ticks,
-                                           unit_cols=unit_cols, running=running,
-                                           n_events=m + skills[0].base.shape[0] + basic[0].base.shape[0])
-    with jax.named_scope("hits"):
-        state, basic_hits = combat.basic_attacks(state, params, dt)
-        groups = ((*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos))
-        state, to_boss, back = lanes.materialize(
-            combat.resolve_hits(seeds, state, params, groups, unit_cols, resolved=(m, pool_sums)), since=state)
-    state = combat.regenerate(state, params, dt)
-    state = state.replace(clock=state.clock + dt)
-    players_dead = ~lanes.any_(state.alive[:-1])
-    # The reference checks the players before the boss: a tick that kills both is a loss.
-    boss_dead_result = jnp.where(players_dead & params.config.ties_are_losses, LOSS, WIN)
-    result = jnp.where(~state.alive[-1], boss_dead_result, jnp.where(players_dead, LOSS, RUNNING))
-    return state.replace(result=result.astype(jnp.int32)), to_boss, back
-
-
-@lanes.lane_function
-def _advance(seeds, state: State, actions, params: Params):
-    """Play the decision's sub-steps (one per row of ``seeds: uint32[n_sub, 2, ...]``) on lane arrays;
-    a finished arena stays as it ended. Returns ``(state, to_boss: float32[U, ...], back: int32[U, ...])``."""
-    n_ticks = TICKS_PER_DECISION // seeds.shape[0]
-    sources = combat.effect_sources(params)  # once per decision, not per sub-step
-
-    def one_substep(carry, xs):
-        sub_seeds, i = xs
-        cur, to_boss, back = carry
-        # The gate is always true but must be a value XLA cannot fold (lanes.gate): the loop counter,
-        # or, with one sub-step (its loop unrolled, the counter a constant), the counter behind an
-        # optimisation barrier (the barrier on five sub-steps' counter cost them ~4 %).
-        running = cur.result == RUNNING
-        with lanes.gate(i >= 0 if seeds.shape[0] > 1 else jax.lax.optimization_barrier(i) >= 0):
-            nxt, tb, bk = substep(sub_seeds, cur, actions, params, sources, n_ticks, running)
-        # The pool of an ended game stands still in the sub-step already: freezing the rest is enough.
-        frozen = _select(running, nxt.replace(projectiles=None), cur.replace(projectiles=None))
-        return (frozen.replace(projectiles=nxt.projectiles), to_boss + jnp.where(running, tb, 0.0),
-                back + jnp.where(running, bk, 0)), None
-
-    zeros = (jnp.zeros_like(state.hp), jnp.zeros_like(state.hp, jnp.int32))  # shaped (and varying) as hp
-    # A scan compiles the sub-step once, whatever n_substeps is.
-    (new, to_boss, back), _ = jax.lax.scan(one_substep, (state, *zeros), (seeds, jnp.arange(seeds.shape[0])))
-    return new, to_boss, back
-
-
-def _learner_moves(state: State, actions, params: Params, dt: float):
-    """``movement.learner_moves`` with the turned headings' unit vectors computed once into memory
-    (``lanes.computed``): both the position and the velocity read them."""
-    heading = movement.turned(state, actions, dt)
-    fwd = lanes.computed(lambda: movement.heading_vec(heading))
-    return (*movement.learner_moves(state, actions, params, dt, fwd), heading)
-
-
 # Under vmap the sub-steps run on the lane layout: the arena axis last (raidjax.lanes).
-advance = lanes.batched(_advance, full=(1,))
+advance = lanes.batched(advance_lanes, full=(1,))
 
 
 def _select(pred, a, b):

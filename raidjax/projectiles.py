@@ -1,45 +1,66 @@
-"""The projectile pool in flight: swept collision, and the pool's hits resolved block by block.
+"""The projectile pool in flight: new projectiles written into their slots, swept collision, and
+the hit events the flight makes (GAME.md §5).
 
 Lane functions (``raidjax.lanes``): shapes are one arena's, followed by any number of lane (batch)
-axes. ``U`` units (boss last), ``S`` skill slots, ``M`` pool slots.
-
-The pool's per-slot work (writing the sub-step's new projectiles, their source features, the
-flight and collision of ``move_projectiles``, the damage of their hits) runs in blocks of
-``POOL_BLOCK`` slots. On XLA:CPU's lane program a block in which no arena of the batch has a live
-or new projectile is skipped: slots fill lowest first, and the reference content keeps at most 8
-projectiles alive (4 096 arenas x 600 decisions at ranges 9 / 13 / 17), so most of a 16-slot pool
-is empty in every arena. An empty slot's state does not change in flight, so a skipped block
-leaves the same state to the bit as a processed one.
+axes. ``U`` units (boss last), ``S`` skill slots, ``M`` pool slots (or a block of them:
+``raidjax.phases`` runs the pool in blocks on XLA:CPU).
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
 from raidjax import collide
-from raidjax.combat import EPS, HitSums, group_sums, pick_effects, spawn, touchable
-from raidjax.lanes import any_, argmin, batch_level, computed, lane_function, materialize, on_cpu, one_hot, pick, total
-from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Effects, Params, Projectiles, Spawns, State
-
-POOL_BLOCK = 4  # pool slots per block of work
+from raidjax.combat import EPS
+from raidjax.lanes import any_, argmin, lane_function, one_hot, pick, total
+from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Effects, Params, State
 
 
-def pool_blocks(m: int) -> int:
-    """How many blocks the pool's ``m`` slots run in: ``m / POOL_BLOCK`` on the CPU backend when
-    ``POOL_BLOCK`` divides ``m`` (elsewhere every block would run anyway: one block)."""
-    if on_cpu() and m % POOL_BLOCK == 0 and m > POOL_BLOCK:
-        return m // POOL_BLOCK
-    return 1
+class Contacts(NamedTuple):
+    """Where the pool's ``M`` slots stand against the ``U`` units before they move, each ``float32[M, U, ...]``:
+    ``t_in`` (how far along its
+    direction a straight missile enters the unit's reach, ``inf`` if never), ``dist`` (centre
+    distance), ``q0x``, ``q0y`` (the slot's position in the unit's body frame)."""
+
+    t_in: jax.Array
+    dist: jax.Array
+    q0x: jax.Array
+    q0y: jax.Array
 
 
 @lane_function
-def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.ndarray, unit_cols):
+def contacts(state: State, params: Params, feats: Effects, unit_cols) -> Contacts:
+    """The pool's (``state.projectiles``) ``Contacts`` with the units. ``feats``: the slots' sources'
+    ``Effects`` (``n = M``); ``unit_cols``: ``combat.unit_columns(state, params)``.
+
+    Reference geometry (collide.py): bodies are squares of half side ``radius`` turning with their
+    heading; a projectile touches one within its own radius of the square."""
+    p = state.projectiles
+    half = params.stats.radius
+    px, py = p.pos[:, 0], p.pos[:, 1]
+    ux, uy = state.pos[:, 0], state.pos[:, 1]
+    dx, dy = p.direction[:, 0], p.direction[:, 1]
+    cos_h, sin_h = -unit_cols["back_x"], -unit_cols["back_y"]  # [U, ...]; negation is exact
+    relx, rely = ux[None] - px[:, None], uy[None] - py[:, None]
+    dist = jnp.sqrt(relx * relx + rely * rely)
+    q0x, q0y = collide.to_body_frame(-relx, -rely, cos_h[None], sin_h[None])
+    d0x, d0y = collide.to_body_frame(dx[:, None], dy[:, None], cos_h[None], sin_h[None])
+    t_in = collide.ray_entry(q0x, q0y, d0x, d0y, half[None], feats.radius[:, None])
+    return Contacts(t_in, dist, q0x, q0y)
+
+
+@lane_function
+def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.ndarray, unit_cols, touch: jnp.ndarray,
+                     near: Contacts):
     """Advance the pool one sub-step with swept collision; slot m flies ``flight[m]`` seconds
     (``combat.spawn``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
     hits before the next). ``feats``: the pool's sources' ``Effects`` (``n = M``);
     ``unit_cols``: ``combat.unit_columns(state, params)`` (its rear directions give the units'
-    headings' cosines and sines, exactly).
+    headings' cosines and sines, exactly); ``touch``: ``combat.touchable``'s ``bool[M, U, ...]`` for the
+    slots' sources; ``near``: the pool's ``contacts`` before the move.
 
     Returns ``(state, hits, from_pos: float32[M, 2, ...])`` where ``from_pos`` is the projectile's
     position before the move (the direction a hit comes from) and ``hits`` is ``bool[M, U, ...]``, or
@@ -49,9 +70,7 @@ def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.n
     u_n = state.pos.shape[0]
     step = feats.speed * flight
     flying = p.live & (flight > 0)
-    touch = computed(lambda: touchable(feats, params, state.alive))  # [M, U, ...]
-    # Reference geometry (collide.py): bodies are squares of half side ``radius`` turning with
-    # their heading; a projectile touches one within its own radius of the square.
+    t_in, dist, q0x, q0y = near
     r_proj = feats.radius
     half = params.stats.radius
     px, py = p.pos[:, 0], p.pos[:, 1]
@@ -76,16 +95,6 @@ def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.n
 
     # Straight: first touched unit along the segment; walls destroy it.
     dx, dy = p.direction[:, 0], p.direction[:, 1]
-
-    def geometry():  # [M, U, ...] each
-        relx, rely = ux[None] - px[:, None], uy[None] - py[:, None]
-        dist = jnp.sqrt(relx * relx + rely * rely)
-        q0x, q0y = collide.to_body_frame(-relx, -rely, cos_h[None], sin_h[None])
-        d0x, d0y = collide.to_body_frame(dx[:, None], dy[:, None], cos_h[None], sin_h[None])
-        return collide.ray_entry(q0x, q0y, d0x, d0y, half[None], r_proj[:, None]), dist, q0x, q0y
-
-    # Computed once into memory: XLA would otherwise recompute the geometry inside every consumer.
-    t_in, dist, q0x, q0y = computed(geometry)
     cross = touch & (t_in <= step[:, None])
     straight = flying & (p.kind == PROJ_STRAIGHT)
     first = argmin(jnp.where(cross, t_in, jnp.inf), axis=1)
@@ -113,10 +122,9 @@ def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.n
         area_first = argmin(jnp.where(inside, dist, jnp.inf), axis=1)
         hit_a = area & any_(inside, axis=1)
         hits_a = hit_a[:, None] & one_hot(area_first, u_n, axis=1)
-        unit = lambda: jnp.where(homing, p.target, jnp.where(straight, first, area_first))  # noqa: E731
-        hits = computed(lambda: (hit_h | hit_s | hit_a, unit()))
+        hits = (hit_h | hit_s | hit_a, jnp.where(homing, p.target, jnp.where(straight, first, area_first)))
     else:
-        hits = computed(lambda: hits_h | hits_s | hits_a)
+        hits = hits_h | hits_s | hits_a
     new_x = jnp.where(homing, hx, jnp.where(straight, sx, px))
     new_y = jnp.where(homing, hy, jnp.where(straight, sy, py))
     life = jnp.where(p.live, p.life - flight, p.life)  # an empty slot's clock stands still
@@ -124,72 +132,3 @@ def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.n
     new = p.replace(live=p.live & ~gone, pos=jnp.stack([new_x, new_y], axis=1), life=life,
                     hit_mask=p.hit_mask | hits_a)
     return state.replace(projectiles=new), hits, p.pos
-
-
-@lane_function
-def fly(seeds, state: State, params: Params, skills: Effects, spawns: Spawns, *, n_ticks: int, unit_cols,
-        n_events: int, running=True):
-    """Spawn this sub-step's projectiles, move the pool and resolve its hits, block by block (see
-    the module docstring).
-
-    Args:
-        seeds: ``uint32[2, ...]`` the sub-step's dice seeds.
-        state: the state after ``combat.fire``.
-        skills: the skill slots' ``Effects`` (``n = U * S``, ``combat.effect_sources``).
-        spawns: ``combat.fire``'s spawns (``combat.spawn`` writes them).
-        n_ticks: ticks in the sub-step (static).
-        unit_cols: ``combat.unit_columns(state, params)``.
-        n_events: ``E``, the sub-step's hit events (the pool's are events ``0..M-1``).
-        running: ``bool[...]``; where false nothing spawns and nothing flies: the pool comes out
-            unchanged to the bit (an ended game's).
-
-    Returns:
-        ``(state, sums)``: the state with the pool moved, and what the pool's hits add up to
-        (``combat.HitSums``).
-    """
-    p = state.projectiles
-    u_n, s_n = state.casting.shape[:2]
-    lanes = state.hp.shape[1:]
-    m = p.live.shape[0]
-    n_blocks = pool_blocks(m)
-    size = m // n_blocks
-    got, src = spawns.got & running, spawns.src
-
-    def block(pb: Projectiles, got_b, src_b, start):
-        pb, flight = spawn(pb, spawns.replace(got=got_b, src=src_b), n_ticks)
-        flight = jnp.where(running, flight, 0.0)
-        feats = computed(lambda: pick_effects(skills, pb.owner * s_n + pb.slot))
-        moved, hits, from_pos = move_projectiles(state.replace(projectiles=pb), params, feats, flight, unit_cols)
-        sums = group_sums(seeds, unit_cols, feats, pb.owner, hits, from_pos, n_events, start, u_n, lanes)
-        return moved.projectiles, sums
-
-    def one_block_only():
-        return block(p, got, src, 0)
-
-    if n_blocks == 1:
-        new, sums = one_block_only()
-        return state.replace(projectiles=new), sums
-    zeros = HitSums(*(jnp.zeros(state.hp.shape) for _ in range(5)))
-
-    def one_block(i, carry):
-        start = i * size
-        cut = lambda x: jax.lax.dynamic_slice_in_dim(x, start, size)  # noqa: E731
-
-        def run(carry):
-            pool, total_sums = carry
-            # The block's slots into memory of their own: the pool's buffers are then written in
-            # place with nothing left to read them, and need no copy.
-            new, sums = block(materialize(jax.tree.map(cut, pool)), cut(got), cut(src), start)
-            pool = jax.tree.map(lambda x, y: jax.lax.dynamic_update_slice_in_dim(x, y, start, 0), pool, new)
-            # Whole points: the sums are exact in any order.
-            return pool, total_sums.plus(sums)
-
-        # A block where no arena of the batch has a live projectile or a new one is skipped.
-        return jax.lax.cond(jnp.any(cut(carry[0].live) | cut(got)), run, lambda c: c, carry)
-
-    def in_blocks():
-        return jax.lax.fori_loop(0, n_blocks, one_block, (p, zeros))
-
-    # Under an outer vmap the blocks' conditionals would run every block: one block there.
-    new, sums = batch_level(in_blocks, one_block_only)
-    return state.replace(projectiles=new), sums

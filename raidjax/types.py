@@ -313,10 +313,12 @@ class Effects:
 
 @struct.dataclass
 class Spawns:
-    """The pool slots that one sub-step's fired skills take: ``combat.fire`` assigns them and
-    ``combat.spawn`` writes them. ``R = U * S`` requests (request ``r`` is unit ``r // S``'s skill
-    slot ``r % S``), ``M`` pool slots; lane axes follow every shape."""
+    """The projectiles and areas one sub-step's fired skills request and the pool slots they take:
+    ``combat.fire`` makes the requests, ``combat.take_slots`` assigns the slots (``got`` and ``src``
+    are ``None`` until then) and ``combat.spawn`` writes them. ``R = U * S`` requests (request ``r``
+    is unit ``r // S``'s skill slot ``r % S``), ``M`` pool slots; lane axes follow every shape."""
 
+    requested: jax.Array  # bool[R]: request r spawns a projectile or an area in this sub-step
     got: jax.Array  # bool[M]: slot m takes a request in this sub-step
     src: jax.Array  # int32[M]: the request slot m takes (where got)
     pos: jax.Array  # float32[R, 2]: where the projectile or area appears

@@ -271,11 +271,11 @@ def test_random_spawns_draw_positions_and_headings_in_each_half_and_keep_other_d
 def test_programs_around_the_game_trace_its_sub_step_once(monkeypatch):
     """``raidjax.utils.traced_once``: a second program that plays the same arenas (here a scan of
     ``step_autoreset``, after a plain vmapped ``step``) reuses the traced sub-step."""
-    from raidjax import env
+    from raidjax import phases
 
     traced = []
-    real = env.substep
-    monkeypatch.setattr(env, "substep", lambda *a: traced.append(1) or real(*a))
+    real = phases.substep
+    monkeypatch.setattr(phases, "substep", lambda *a: traced.append(1) or real(*a))
     n = 19  # an arena count no other test plays (grouped PCG measurements included): traced here first
     p = jax.tree.map(lambda x: jnp.broadcast_to(x, (n,) + x.shape), raidjax.make_params())
     keys = jax.random.split(KEY, n)

@@ -218,7 +218,10 @@ def test_area_hits_at_most_hit_count_units_nearest_first(hit_count, expected):
 def _move(state, params):
     skills, _ = combat.effect_sources(params)
     feats = jax.tree.map(lambda x: x[state.projectiles.owner * 3 + state.projectiles.slot], skills)
-    return projectiles.move_projectiles(state, params, feats, 0.1, combat.unit_columns(state, params))
+    cols = combat.unit_columns(state, params)
+    touch = combat.touchable(feats, params, state.alive)
+    near = projectiles.contacts(state, params, feats, cols)
+    return projectiles.move_projectiles(state, params, feats, 0.1, cols, touch, near)
 
 
 def test_area_hits_each_unit_only_once_while_it_lingers():

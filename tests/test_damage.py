@@ -78,7 +78,10 @@ def mean_multiplier(key, state, params):
     hits = jnp.zeros((E, 4), bool).at[:, BOSS].set(True)
     from_pos = jnp.broadcast_to(state.pos[0], (E, 2))
     seeds = raidjax.utils.dice_seeds(key)
-    _, to_boss, _ = combat.resolve_hits(seeds, state, params, [(feats, jnp.zeros(E, jnp.int32), hits, from_pos)])
+    u_n = hits.shape[1]
+    outcomes = combat.hit_outcomes(seeds, combat.unit_columns(state, params), feats, hits, from_pos, E, 0, u_n, ())
+    sums = combat.group_sums(outcomes, feats, jnp.zeros(E, jnp.int32), hits, u_n)
+    _, to_boss, _ = combat.apply_hits(state, params, sums)
     return to_boss[0] / (50.0 * E)
 
 

@@ -127,7 +127,7 @@ def test_lane_function_equals_vmap_of_one_arena(recorded, name):
         pytest.fail(f"{name} was not called in every recorded arena")
     # Op by op, as a newcomer's function runs in a notebook; the decision's loop of sub-steps
     # compiles once per lane count instead of running its five sub-steps op by op.
-    eager = contextlib.nullcontext() if name == "raidjax.env._advance" else jax.disable_jit()
+    eager = contextlib.nullcontext() if name == "raidjax.phases.advance_lanes" else jax.disable_jit()
     with eager:
         problem = check_lanes(lanes.REGISTRY[name], recorded[name])
     assert problem is None, f"{name}: {problem}"

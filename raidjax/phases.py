@@ -102,7 +102,7 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
             lambda state=state: combat.fire(state, params, fired_tick, n_ticks))
         # Spawn: the requests take the pool's free slots.
         match = lanes.computed(lambda: combat.slot_match(spawns.requested, state.projectiles.live))
-        state, spawns = lanes.computed(lambda: combat.take_slots(state, spawns, match))
+        state, spawns = combat.take_slots(state, spawns, match)
     skills, basic = combat.event_sources(sources, state.hp.ndim - 1)
     # The pool moves nobody: the units' columns serve every hit of the sub-step.
     unit_cols = lanes.computed(lambda: combat.unit_columns(state, params, spawns.facing))

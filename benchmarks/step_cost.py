@@ -25,7 +25,7 @@ import jax.numpy as jnp
 from env_throughput import arenas
 
 import raidjax
-from raidjax import combat, lanes
+from raidjax import damage, lanes
 from raidjax.io import machine
 from raidjax.phases import substep
 from raidjax.types import TICKS_PER_DECISION
@@ -67,13 +67,13 @@ def main() -> None:
     program = lanes.batched(lane_substep, full=(1,))
 
     def one_substep(key, state, actions, params):
-        return program(dice_seeds(key), state.replace(memory=None), actions, params, combat.effect_sources(params))
+        return program(dice_seeds(key), state.replace(memory=None), actions, params, damage.effect_sources(params))
 
     sub = jax.jit(jax.vmap(one_substep)).lower(keys, state, actions, batch).compile()
-    sources = jax.jit(jax.vmap(combat.effect_sources)).lower(batch).compile()
-    table = jax.jit(jax.vmap(combat.effect_table)).lower(batch).compile()
+    sources = jax.jit(jax.vmap(damage.effect_sources)).lower(batch).compile()
+    table = jax.jit(jax.vmap(damage.effect_table)).lower(batch).compile()
     dec = jax.jit(jax.vmap(raidjax.step)).lower(keys, state, actions, batch).compile()
-    obs = jax.jit(jax.vmap(lambda s, p: raidjax.observe(s, p, combat.effect_table(p)))).lower(state, batch).compile()
+    obs = jax.jit(jax.vmap(lambda s, p: raidjax.observe(s, p, damage.effect_table(p)))).lower(state, batch).compile()
     sub_cost, sources_cost, table_cost, obs_cost = cost(sub), cost(sources), cost(table), cost(obs)
     n = args.arenas
     state_bytes = sum(x.dtype.itemsize * x.size for x in jax.tree.leaves(state)) / n

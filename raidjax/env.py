@@ -15,7 +15,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax import combat, lanes, movement
+from raidjax import damage, lanes, movement
 from raidjax.observation import observe
 from raidjax.phases import advance_lanes, substep  # noqa: F401 (substep: public, raidjax.env.substep)
 from raidjax.reference_observation import remember, start_memory
@@ -172,7 +172,7 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     n_players = actions.shape[0]
     n_sub = params.config.n_substeps
     was_done = state.result != RUNNING
-    table = combat.effect_table(params)
+    table = damage.effect_table(params)
     seeds = jax.vmap(dice_seeds)(jax.random.split(key, n_sub))
     new, to_boss, back = advance(seeds, state.replace(memory=None), actions, params)
     new = new.replace(memory=state.memory)

@@ -9,7 +9,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax.combat import effect_table, haste_factor, pick_effects, skill_targets, source_index, usable_slot
+from raidjax.combat import haste_factor, skill_targets, usable_slot
+from raidjax.damage import effect_table, pick_effects, source_index
 from raidjax.reference_observation import ReferenceObservation, observe_reference
 from raidjax.types import CAST_1, HALF_ARENA, HIT_ATTACK, TRIGGER_PASSIVE, Effects, Observation, Params, State
 from raidjax.utils import traced_once
@@ -46,7 +47,7 @@ def observe(state: State, params: Params, table: Effects | None = None) -> Obser
     Args:
         state: one arena's ``State`` (``U = P + 1`` units).
         params: its ``Params``.
-        table: ``combat.effect_table(params)`` if already computed (saves work inside ``step``).
+        table: ``damage.effect_table(params)`` if already computed (saves work inside ``step``).
 
     Returns:
         ``Observation`` with a leading player axis ``P`` (shapes in ``types.Observation``), or under

@@ -22,7 +22,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax import combat, heuristic, lanes, movement, projectiles
+from raidjax import combat, damage, heuristic, lanes, movement, projectiles
 from raidjax.types import ACTION_HEURISTIC, LOSS, RUNNING, TICK, TICKS_PER_DECISION, WIN, Effects, Params, Spawns, State
 
 POOL_BLOCK = 4  # pool slots per block of work
@@ -66,7 +66,7 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
     Args:
         seeds: ``uint32[2, ...]`` dice seeds of this sub-step (``utils.dice_seeds``).
         state: ``State`` lane arrays; actions: ``int32[P, ...]`` (checked); params: ``Params`` lane arrays.
-        sources: ``combat.effect_sources``' ``(skills, basic)`` ``Effects``.
+        sources: ``damage.effect_sources``' ``(skills, basic)`` ``Effects``.
         n_ticks: ticks in the sub-step (static).
         running: ``bool[...]``; where false the projectile pool comes out unchanged to the bit (nothing
             spawns, nothing flies), so the caller freezes an ended game's other fields only.
@@ -103,22 +103,22 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
         # Spawn: the requests take the pool's free slots.
         match = lanes.computed(lambda: combat.slot_match(spawns.requested, state.projectiles.live))
         state, spawns = combat.take_slots(state, spawns, match)
-    skills, basic = combat.event_sources(sources, state.hp.ndim - 1)
+    skills, basic = damage.event_sources(sources, state.hp.ndim - 1)
     # The pool moves nobody: the units' columns serve every hit of the sub-step.
-    unit_cols = lanes.computed(lambda: combat.unit_columns(state, params, spawns.facing))
+    unit_cols = lanes.computed(lambda: damage.unit_columns(state, params, spawns.facing))
     m = state.projectiles.live.shape[0]
     n_events = m + skills[0].base.shape[0] + basic[0].base.shape[0]
     with jax.named_scope("projectiles"):
         pool, sums = _fly_pool(seeds, state, params, sources[0], spawns, n_ticks, unit_cols, n_events, running)
         state = state.replace(projectiles=pool)
     with jax.named_scope("hits"):
-        state, basic_hits = combat.basic_attacks(state, params, dt)
+        state, basic_hits = damage.basic_attacks(state, params, dt)
         first = m
         for group in ((*skills, inst_hits, inst_from), (*basic, basic_hits, state.pos)):
             sums = sums.plus(_group_sums(seeds, unit_cols, group, n_events, first))
             first += group[0].base.shape[0]
-        state, to_boss, back = lanes.materialize(combat.apply_hits(state, params, sums), since=state)
-    state = combat.regenerate(state, params, dt)
+        state, to_boss, back = lanes.materialize(damage.apply_hits(state, params, sums), since=state)
+    state = damage.regenerate(state, params, dt)
     state = state.replace(clock=state.clock + dt)
     players_dead = ~lanes.any_(state.alive[:-1])
     # The reference checks the players before the boss: a tick that kills both is a loss.
@@ -132,7 +132,7 @@ def advance_lanes(seeds, state: State, actions, params: Params):
     """Play the decision's sub-steps (one per row of ``seeds: uint32[n_sub, 2, ...]``) on lane arrays;
     a finished arena stays as it ended. Returns ``(state, to_boss: float32[U, ...], back: int32[U, ...])``."""
     n_ticks = TICKS_PER_DECISION // seeds.shape[0]
-    sources = combat.effect_sources(params)  # once per decision, not per sub-step
+    sources = damage.effect_sources(params)  # once per decision, not per sub-step
 
     def one_substep(carry, xs):
         sub_seeds, i = xs
@@ -171,8 +171,8 @@ def pool_blocks(m: int) -> int:
     return 1
 
 
-def _group_sums(seeds, unit_cols, group, n_events: int, first) -> combat.HitSums:
-    """``combat.group_sums`` of one group ``(effects, owner, hits, from_pos)`` starting at event
+def _group_sums(seeds, unit_cols, group, n_events: int, first) -> damage.HitSums:
+    """``damage.group_sums`` of one group ``(effects, owner, hits, from_pos)`` starting at event
     ``first``; zeros without the work where no arena of the batch lands one of its events (the
     reference content has no instant skills and no basic attacks). Every sum is of whole points,
     so adding zeros or the group's sums of no hits gives the same bits."""
@@ -182,9 +182,9 @@ def _group_sums(seeds, unit_cols, group, n_events: int, first) -> combat.HitSums
 
     def sums():
         # The dice and modifiers once into memory: every sum reads them.
-        outcomes = lanes.computed(lambda: combat.hit_outcomes(seeds, unit_cols, f, hits, from_pos, n_events, first,
+        outcomes = lanes.computed(lambda: damage.hit_outcomes(seeds, unit_cols, f, hits, from_pos, n_events, first,
                                                               u_n, lane_shape))
-        return combat.group_sums(outcomes, f, owner, hits, u_n)
+        return damage.group_sums(outcomes, f, owner, hits, u_n)
 
     return lanes.if_any(hit, sums)
 
@@ -194,7 +194,7 @@ def _fly_pool(seeds, state: State, params: Params, skills: Effects, spawns: Spaw
     """``projectiles.fly`` over the whole pool and the sums of its hits (events ``0..M-1``), in
     ``pool_blocks`` blocks; a block in which no arena of the batch has a live or a new projectile is
     skipped (an empty slot's state does not change in flight, so the state is the same to the bit).
-    Returns ``(pool, combat.HitSums)``."""
+    Returns ``(pool, damage.HitSums)``."""
     p = state.projectiles
     m = p.live.shape[0]
     s_n = state.casting.shape[1]
@@ -207,9 +207,9 @@ def _fly_pool(seeds, state: State, params: Params, skills: Effects, spawns: Spaw
         # stands against each unit (collide), and the flight with its hits.
         pb, flight = lanes.computed(lambda: combat.spawn(pb, spawns.replace(got=got_b, src=src_b), n_ticks))
         flight = jnp.where(running, flight, 0.0)
-        feats = lanes.computed(lambda: combat.pick_effects(skills, pb.owner * s_n + pb.slot))
+        feats = lanes.computed(lambda: damage.pick_effects(skills, pb.owner * s_n + pb.slot))
         at = state.replace(projectiles=pb)
-        touch = lanes.computed(lambda: combat.touchable(feats, params, state.alive))
+        touch = lanes.computed(lambda: damage.touchable(feats, params, state.alive))
         near = lanes.computed(lambda: projectiles.contacts(at, params, feats, unit_cols))
         moved, hits, from_pos = projectiles.move_projectiles(at, params, feats, flight, unit_cols, touch, near)
         return moved.projectiles, _group_sums(seeds, unit_cols, (feats, pb.owner, hits, from_pos), n_events, start)
@@ -219,7 +219,7 @@ def _fly_pool(seeds, state: State, params: Params, skills: Effects, spawns: Spaw
 
     if n_blocks == 1:
         return whole_pool()
-    zeros = combat.HitSums(*(jnp.zeros(state.hp.shape) for _ in range(5)))
+    zeros = damage.HitSums(*(jnp.zeros(state.hp.shape) for _ in range(5)))
 
     def one_block(i, carry):
         start = i * size

@@ -34,7 +34,7 @@ class Contacts(NamedTuple):
 @lane_function
 def contacts(state: State, params: Params, feats: Effects, unit_cols) -> Contacts:
     """The pool's (``state.projectiles``) ``Contacts`` with the units. ``feats``: the slots' sources'
-    ``Effects`` (``n = M``); ``unit_cols``: ``combat.unit_columns(state, params)``.
+    ``Effects`` (``n = M``); ``unit_cols``: ``damage.unit_columns(state, params)``.
 
     Reference geometry (collide.py): bodies are squares of half side ``radius`` turning with their
     heading; a projectile touches one within its own radius of the square."""
@@ -58,8 +58,8 @@ def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.n
     """Advance the pool one sub-step with swept collision; slot m flies ``flight[m]`` seconds
     (``combat.spawn``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
     hits before the next). ``feats``: the pool's sources' ``Effects`` (``n = M``);
-    ``unit_cols``: ``combat.unit_columns(state, params)`` (its rear directions give the units'
-    headings' cosines and sines, exactly); ``touch``: ``combat.touchable``'s ``bool[M, U, ...]`` for the
+    ``unit_cols``: ``damage.unit_columns(state, params)`` (its rear directions give the units'
+    headings' cosines and sines, exactly); ``touch``: ``damage.touchable``'s ``bool[M, U, ...]`` for the
     slots' sources; ``near``: the pool's ``contacts`` before the move.
 
     Returns ``(state, hits, from_pos: float32[M, 2, ...])`` where ``from_pos`` is the projectile's

@@ -24,7 +24,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from raidjax.combat import source_index
+from raidjax.damage import source_index
 from raidjax.lanes import pick
 from raidjax.types import HALF_ARENA, Effects, Params, State
 
@@ -194,7 +194,7 @@ def remember(state: State, params: Params) -> State:
 
 def observe_reference(state: State, params: Params, table: Effects, action_mask: jax.Array) -> ReferenceObservation:
     """Build every player's ``ReferenceObservation`` from ``state`` (its ``memory`` already holds
-    this decision's vector). ``table``: ``combat.effect_table(params)`` (``Effects``);
+    this decision's vector). ``table``: ``damage.effect_table(params)`` (``Effects``);
     ``action_mask``: ``bool[P, A]``."""
     n_players = params.team.shape[0] - 1
     alive = state.alive[:n_players]

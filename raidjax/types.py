@@ -293,7 +293,7 @@ class Projectiles:
 @struct.dataclass
 class Effects:
     """What a hit needs to know about its sources, one entry per source (a unit's skill slot or
-    basic attack, ``combat.effect_sources``): every field ``float32[n]`` (lane axes follow). Built
+    basic attack, ``damage.effect_sources``): every field ``float32[n]`` (lane axes follow). Built
     once per decision; ``n`` is ``len(base)``."""
 
     base: jax.Array  # damage before multipliers: int(coefficient x power) x the primary stat's scale

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from helpers import BOSS, CAST_1, NOOP, RESET, acts, events, make, run, scenario, series
 
-from raidjax import combat, projectiles
+from raidjax import damage, projectiles
 
 CAST = acts(CAST_1, NOOP, NOOP)
 CHASER = {"move_speed": 6.0}  # passive boss that chases (its attacks out of range)
@@ -216,10 +216,10 @@ def test_area_hits_at_most_hit_count_units_nearest_first(hit_count, expected):
 
 @jax.jit
 def _move(state, params):
-    skills, _ = combat.effect_sources(params)
+    skills, _ = damage.effect_sources(params)
     feats = jax.tree.map(lambda x: x[state.projectiles.owner * 3 + state.projectiles.slot], skills)
-    cols = combat.unit_columns(state, params)
-    touch = combat.touchable(feats, params, state.alive)
+    cols = damage.unit_columns(state, params)
+    touch = damage.touchable(feats, params, state.alive)
     near = projectiles.contacts(state, params, feats, cols)
     return projectiles.move_projectiles(state, params, feats, 0.1, cols, touch, near)
 

@@ -16,7 +16,7 @@ import pytest
 from helpers import BOSS, CAST_1, NOOP, acts, make, run, scenario, series
 
 import raidjax.utils
-from raidjax import combat
+from raidjax import damage
 
 FAST = {"skill1.projectile_speed": 0.0, "skill1.cast_time": 0.0}
 CAST = acts(CAST_1, NOOP, NOOP)
@@ -74,14 +74,14 @@ E = 800
 @jax.jit
 def mean_multiplier(key, state, params):
     """Average damage of E simultaneous hits of player 0's slot 1 on the boss / base 50."""
-    feats = jax.tree.map(lambda x: jnp.broadcast_to(x[combat.source_index(0, 0, 3)], (E,)), combat.effect_table(params))
+    feats = jax.tree.map(lambda x: jnp.broadcast_to(x[damage.source_index(0, 0, 3)], (E,)), damage.effect_table(params))
     hits = jnp.zeros((E, 4), bool).at[:, BOSS].set(True)
     from_pos = jnp.broadcast_to(state.pos[0], (E, 2))
     seeds = raidjax.utils.dice_seeds(key)
     u_n = hits.shape[1]
-    outcomes = combat.hit_outcomes(seeds, combat.unit_columns(state, params), feats, hits, from_pos, E, 0, u_n, ())
-    sums = combat.group_sums(outcomes, feats, jnp.zeros(E, jnp.int32), hits, u_n)
-    _, to_boss, _ = combat.apply_hits(state, params, sums)
+    outcomes = damage.hit_outcomes(seeds, damage.unit_columns(state, params), feats, hits, from_pos, E, 0, u_n, ())
+    sums = damage.group_sums(outcomes, feats, jnp.zeros(E, jnp.int32), hits, u_n)
+    _, to_boss, _ = damage.apply_hits(state, params, sums)
     return to_boss[0] / (50.0 * E)
 
 

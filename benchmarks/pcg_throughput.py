@@ -9,7 +9,8 @@ implied games/s. Uses ``raidjax.pcg.step_autoreset`` (exactly one playtest per s
     python benchmarks/pcg_throughput.py --train paper --steps 2                      # its paper PPO's training
 
 ``--beside-playtest`` also times two PT-HR playtests (chained arenas) of as many games as one of the
-generator's measurements plays side by side, in the same process: the reference content at range
+generator's measurements plays side by side, in the same process, call after call with the
+generator's (medians of ``--repeats``): the reference content at range
 13 (``playtest_games_per_s``, ``ratio_to_playtest``), and one content per episode with a skill drawn
 uniformly from the generator's box (``box_playtest_games_per_s``, ``ratio_to_box_playtest``), the
 kind of games generation plays (longer: both report their mean decisions per game).
@@ -46,12 +47,12 @@ def make_rollout(params: pcg.PCGParams, n_steps: int):
     return rollout
 
 
-def generation(episodes: int, decisions: int, n_games: int) -> dict:
+def generation(episodes: int, decisions: int, n_games: int):
     """Benchmark 2's generation as its ``cpu`` scale runs it (``trainers.generate.generate_episodes``):
     raidjax's PPO, the paper's PPO (7 models; untrained networks: their edits, not their weights,
     set the games) and PCG-HR and PCG-RD, ``episodes`` per target and method side by side, strict
-    episodes of ``decisions`` measurements of ``n_games`` PT-HR games. Times one call after a warm-up
-    (compile excluded)."""
+    episodes of ``decisions`` measurements of ``n_games`` PT-HR games. Returns ``(row, call, games)``:
+    the settings, a function that plays one call (compiled by the first, here) and its games."""
     from trainers.config import load_config
     from trainers.generate import PPOGenerator, generate_episodes, target_groups
     from trainers.ppo_pcgrl import make_train
@@ -67,23 +68,25 @@ def generation(episodes: int, decisions: int, n_games: int) -> dict:
     kw = dict(gen_games=n_games, greedy=True, episodes=episodes, eval_games=0, strict_length=True,
               max_edits=decisions - 1)
     t0 = time.perf_counter()
-    generate_episodes(jax.random.key(1), gens, **kw)  # compiles, then plays
+    out = generate_episodes(jax.random.key(1), gens, **kw)  # compiles, then plays
     first = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    out = generate_episodes(jax.random.key(2), gens, **kw)
-    seconds = time.perf_counter() - t0
     n_episodes = sum(len(g["target"]) for g in out.values())
-    games = n_episodes * decisions * n_games
-    return {"benchmark": "pcg_generation", "machine": machine(load=True), "methods": list(out),
-            "episodes_per_target_and_method": episodes, "episodes": n_episodes, "decisions": decisions,
-            "n_games": n_games, "games_per_measurement": n_episodes * n_games, "first_call_s": round(first, 2),
-            "seconds": round(seconds, 2), "games_per_s": round(games / seconds, 1)}
+    calls = iter(range(2, 10**6))
+
+    def call():
+        generate_episodes(jax.random.key(next(calls)), gens, **kw)
+
+    row = {"benchmark": "pcg_generation", "machine": machine(load=True), "methods": list(out),
+           "episodes_per_target_and_method": episodes, "episodes": n_episodes, "decisions": decisions,
+           "n_games": n_games, "games_per_measurement": n_episodes * n_games, "first_call_s": round(first, 2)}
+    return row, call, n_episodes * decisions * n_games
 
 
-def training(preset: str, updates: int) -> dict:
+def training(preset: str, updates: int):
     """One PPO-PCGRL learner of Benchmark 2 (``preset``: ``cpu``, one model, or ``paper``, 7 models
-    vmapped, one per target), ``updates`` updates timed after a warm-up update (compile excluded):
-    the games/s of its training measurements (the networks' updates included)."""
+    vmapped, one per target). Returns ``(row, call, games)``: the settings, a function that runs
+    ``updates`` more updates (compiled and warmed up here) and the games of its training
+    measurements (the networks' updates are in its time)."""
     from trainers.config import load_config
     from trainers.generate import target_groups
     from trainers.ppo_pcgrl import make_train
@@ -98,20 +101,22 @@ def training(preset: str, updates: int) -> dict:
     t0 = time.perf_counter()
     compiled = run.lower(state, targets).compile()
     compile_s = time.perf_counter() - t0
-    state, _ = jax.block_until_ready(compiled(state, targets))  # warm-up (its first steps reset the episodes)
-    t0 = time.perf_counter()
-    jax.block_until_ready(compiled(state, targets))
-    seconds = time.perf_counter() - t0
+    held = [jax.block_until_ready(compiled(state, targets))[0]]  # warm-up (its first steps reset the episodes)
+
+    def call():
+        held[0] = jax.block_until_ready(compiled(held[0], targets))[0]
+
     games = len(labels) * updates * cfg.n_arenas * cfg.n_steps * cfg.n_games
-    return {"benchmark": "pcg_training", "machine": machine(load=True), "preset": preset, "models": len(labels),
-            "episodes_side_by_side": len(labels) * cfg.n_arenas, "n_games": cfg.n_games,
-            "games_per_measurement": len(labels) * cfg.n_arenas * cfg.n_games, "updates": updates,
-            "compile_s": round(compile_s, 2), "seconds": round(seconds, 2), "games_per_s": round(games / seconds, 1)}
+    row = {"benchmark": "pcg_training", "machine": machine(load=True), "preset": preset, "models": len(labels),
+           "episodes_side_by_side": len(labels) * cfg.n_arenas, "n_games": cfg.n_games,
+           "games_per_measurement": len(labels) * cfg.n_arenas * cfg.n_games, "updates": updates,
+           "compile_s": round(compile_s, 2)}
+    return row, call, games
 
 
-def playtest_beside(games: int, repeats: int, groups: int | None = None) -> tuple[float, float]:
-    """``(games/s, mean decisions per game)`` of a PT-HR playtest of ``games`` games (raidjax's one
-    protocol: chained arenas after a warm-up), compiled first, best of ``repeats``. ``groups=None``:
+def playtest_beside(games: int, groups: int | None = None):
+    """``(call, mean decisions per game)`` of a PT-HR playtest of ``games`` games (raidjax's one
+    protocol: chained arenas after a warm-up): ``call()`` plays it once (compiled here). ``groups=None``:
     the reference content at range 13; else ``groups`` contents of ``games // groups`` games each
     (``raidjax.playtest_groups``), each with a skill drawn uniformly from the generator's box, as
     generator episodes play: the same kind of games, which are longer than the reference's."""
@@ -130,22 +135,40 @@ def playtest_beside(games: int, repeats: int, groups: int | None = None) -> tupl
         play = jax.jit(lambda k: raidjax.playtest_groups(jax.random.split(k, groups), contents,
                                                          raidjax.policies.heuristic, n))
     length = float(np.mean(np.asarray(jax.block_until_ready(play(jax.random.key(0)))["length"])))  # compiles
-    times = []
-    for i in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(play(jax.random.key(1 + i)))
-        times.append(time.perf_counter() - t0)
-    return games / min(times), length
+    keys = iter(range(1, 10**6))
+    return lambda: jax.block_until_ready(play(jax.random.key(next(keys)))), length
 
 
-def _beside(row: dict, games: int, repeats: int, groups: int) -> dict:
-    rate, length = playtest_beside(games, repeats)
-    box_rate, box_length = playtest_beside(games, repeats, groups)
-    return {**row, "playtest_games": games, "playtest_games_per_s": round(rate, 1),
-            "playtest_decisions_per_game": round(length, 1), "ratio_to_playtest": round(row["games_per_s"] / rate, 3),
-            "box_playtest_groups": groups, "box_playtest_games_per_s": round(box_rate, 1),
-            "box_playtest_decisions_per_game": round(box_length, 1),
-            "ratio_to_box_playtest": round(row["games_per_s"] / box_rate, 3)}
+def _seconds(call) -> float:
+    t0 = time.perf_counter()
+    call()
+    return time.perf_counter() - t0
+
+
+def _timed(row: dict, call, games: int, repeats: int, beside: int | None = None, groups: int | None = None) -> dict:
+    """``row`` with ``call``'s games/s (``games`` per call): the median of ``repeats`` timed calls.
+    With ``beside`` (a game count) the two playtests of ``playtest_beside`` (the reference content,
+    and ``groups`` box-drawn contents) are timed between them, call after call, so the three share
+    this CPU's slow and fast phases alike; each rate is its median and the ratios are of medians."""
+    others = {}
+    if beside:
+        others = {"playtest": playtest_beside(beside), "box_playtest": playtest_beside(beside, groups)}
+    times = {"": [], **{k: [] for k in others}}
+    for _ in range(repeats):
+        times[""].append(_seconds(call))
+        for k, (other, _length) in others.items():
+            times[k].append(_seconds(other))
+    median = {k: sorted(v)[len(v) // 2] for k, v in times.items()}
+    rate = games / median[""]
+    out = {**row, "repeats": repeats, "seconds": [round(t, 2) for t in times[""]], "games_per_s": round(rate, 1)}
+    for k, (_, length) in others.items():
+        other_rate = beside / median[k]
+        out.update({f"{k}_games": beside, f"{k}_seconds": [round(t, 3) for t in times[k]],
+                    f"{k}_games_per_s": round(other_rate, 1), f"{k}_decisions_per_game": round(length, 1),
+                    f"ratio_to_{k}": round(rate / other_rate, 3)})
+    if groups:
+        out["box_playtest_groups"] = groups
+    return out
 
 
 def main() -> None:
@@ -155,7 +178,7 @@ def main() -> None:
     ap.add_argument("--envs", type=int, default=8, help="generator episodes stepped in parallel")
     ap.add_argument("--n-games", type=int, default=100)
     ap.add_argument("--steps", type=int, default=2, help="generator steps per timed call")
-    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--repeats", type=int, default=3, help="timed calls")
     ap.add_argument("--generation", type=int, metavar="EPISODES",
                     help="instead: Benchmark 2's generation, EPISODES per target and method side by side, with "
                     "--decisions measurements of --n-games games each")
@@ -171,9 +194,10 @@ def main() -> None:
     elif args.train:
         row = training(args.train, args.steps)
     if row is not None:
+        row, call, games = row
         groups = row.get("episodes", row.get("episodes_side_by_side"))
-        print(json.dumps(_beside(row, row["games_per_measurement"], args.repeats, groups) if args.beside_playtest
-                         else row))
+        beside = row["games_per_measurement"] if args.beside_playtest else None
+        print(json.dumps(_timed(row, call, games, args.repeats, beside, groups)))
         return
 
     params = pcg.make_pcg_params(n_games=args.n_games)
@@ -197,8 +221,10 @@ def main() -> None:
         "generator_steps_per_s": round(steps / best, 2), "games_per_s": round(steps * args.n_games / best, 1),
         "times_s": [round(t, 3) for t in times],
     }
-    print(json.dumps(_beside(row, args.envs * args.n_games, args.repeats, args.envs) if args.beside_playtest
-                     else row))
+    if args.beside_playtest:
+        row = _timed(row, lambda: jax.block_until_ready(compiled(key, states)), steps * args.n_games, args.repeats,
+                     args.envs * args.n_games, args.envs)
+    print(json.dumps(row))
 
 
 if __name__ == "__main__":

@@ -191,9 +191,10 @@ def _group_sums(seeds, unit_cols, group, n_events: int, first) -> damage.HitSums
 
 def _fly_pool(seeds, state: State, params: Params, skills: Effects, spawns: Spawns, n_ticks: int, unit_cols,
               n_events: int, running):
-    """``projectiles.fly`` over the whole pool and the sums of its hits (events ``0..M-1``), in
-    ``pool_blocks`` blocks; a block in which no arena of the batch has a live or a new projectile is
-    skipped (an empty slot's state does not change in flight, so the state is the same to the bit).
+    """The pool's sub-step (spawn the new projectiles, their sources' ``Effects``, ``contacts``,
+    ``move_projectiles``) and the sums of its hits (events ``0..M-1``), in ``pool_blocks`` blocks; a
+    block in which no arena of the batch has a live or a new projectile is skipped (an empty slot's
+    state does not change in flight, so the state is the same to the bit).
     Returns ``(pool, damage.HitSums)``."""
     p = state.projectiles
     m = p.live.shape[0]

@@ -118,10 +118,6 @@ def random_spawns(key: jax.Array, params: Params) -> tuple[jax.Array, jax.Array]
 advance = lanes.batched(advance_lanes, full=(1,))
 
 
-def _select(pred, a, b):
-    return jax.tree.map(lambda x, y: jnp.where(pred, x, y), a, b)
-
-
 def check_actions(actions, params: Params) -> jax.Array:
     """``actions`` as ``int32[P]``, checked when traced (shapes and dtypes are static).
 
@@ -181,7 +177,7 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
     new = new.replace(decision=decision, result=jnp.int32(result))
     if params.config.observation == "reference":
         new = remember(new, params)
-    new = _select(was_done, state, new)
+    new = lanes.select(was_done, state, new)
     won = (new.result == WIN) & ~was_done
     reward = DAMAGE_REWARD * to_boss[:n_players] + WIN_REWARD * won
     reward = jnp.where(was_done, 0.0, reward).astype(jnp.float32)
@@ -275,4 +271,4 @@ def step_autoreset(key: jax.Array, state: State, actions: jax.Array, params: Par
     with jax.named_scope("next_episode"):
         obs_next, state_next = next_episode(k_reset, new, params)
     info = {**info, "final_observation": obs, "final_result": new.result}
-    return _select(done, obs_next, obs), _select(done, state_next, new), reward, done, info
+    return lanes.select(done, obs_next, obs), lanes.select(done, state_next, new), reward, done, info

@@ -234,6 +234,12 @@ batching.primitive_batchers[_vmap_rule_p] = _batched
 ad.primitive_jvps[_vmap_rule_p] = _jvp
 
 
+def select(pred: jax.Array, a, b):
+    """``a`` where ``pred`` holds, ``b`` elsewhere, leaf by leaf (pytrees of the same structure;
+    ``pred``, e.g. ``bool[...]`` per arena, broadcasts against every leaf as NumPy does)."""
+    return jax.tree.map(lambda x, y: jnp.where(pred, x, y), a, b)
+
+
 def fold(op, x: jax.Array, axis: int = 0) -> jax.Array:
     """``op`` applied left to right over the slices of ``x`` along ``axis`` (counted from the front).
 

@@ -144,8 +144,7 @@ def advance_lanes(seeds, state: State, actions, params: Params):
         with lanes.gate(i >= 0 if seeds.shape[0] > 1 else jax.lax.optimization_barrier(i) >= 0):
             nxt, tb, bk = substep(sub_seeds, cur, actions, params, sources, n_ticks, running)
         # The pool of an ended game stands still in the sub-step already: freezing the rest is enough.
-        frozen = jax.tree.map(lambda a, b: jnp.where(running, a, b), nxt.replace(projectiles=None),
-                              cur.replace(projectiles=None))
+        frozen = lanes.select(running, nxt.replace(projectiles=None), cur.replace(projectiles=None))
         return (frozen.replace(projectiles=nxt.projectiles), to_boss + jnp.where(running, tb, 0.0),
                 back + jnp.where(running, bk, 0)), None
 

@@ -19,6 +19,7 @@ kind of games generation plays (longer: both report their mean decisions per gam
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import time
 
@@ -71,7 +72,7 @@ def generation(episodes: int, decisions: int, n_games: int):
     out = generate_episodes(jax.random.key(1), gens, **kw)  # compiles, then plays
     first = time.perf_counter() - t0
     n_episodes = sum(len(g["target"]) for g in out.values())
-    calls = iter(range(2, 10**6))
+    calls = itertools.count(2)  # a fresh key per call
 
     def call():
         generate_episodes(jax.random.key(next(calls)), gens, **kw)
@@ -135,7 +136,7 @@ def playtest_beside(games: int, groups: int | None = None):
         play = jax.jit(lambda k: raidjax.playtest_groups(jax.random.split(k, groups), contents,
                                                          raidjax.policies.heuristic, n))
     length = float(np.mean(np.asarray(jax.block_until_ready(play(jax.random.key(0)))["length"])))  # compiles
-    keys = iter(range(1, 10**6))
+    keys = itertools.count(1)
     return lambda: jax.block_until_ready(play(jax.random.key(next(keys)))), length
 
 

@@ -50,3 +50,16 @@ def test_a_ppo_config_saved_with_hidden_as_a_list_reads_back_and_its_run_resumes
     assert RunFolder(out, now, resume=True).resumed
     with pytest.raises(ValueError, match="ppo_config.hidden: saved 32, now 64"):
         RunFolder(out, {"benchmark": 2, "ppo_config": PPOConfig().to_dict()}, resume=True)
+
+
+def test_a_mapoca_run_saved_before_fresh_starts_and_random_spawns_existed_resumes(tmp_path):
+    # Benchmark 1 folders saved before these two fields existed played chained arenas and fixed
+    # spawns (their values 0.0 and False); another value is another run and is refused.
+    old = Config().to_dict()
+    del old["fresh_starts"], old["random_spawns"]
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "config.json").write_text(json.dumps({"benchmark": 1, "trainer": old}))
+    assert RunFolder(out, {"benchmark": 1, "trainer": Config().to_dict()}, resume=True).resumed
+    with pytest.raises(ValueError, match="trainer.fresh_starts: saved null, now 0.5"):
+        RunFolder(out, {"benchmark": 1, "trainer": Config(fresh_starts=0.5).to_dict()}, resume=True)

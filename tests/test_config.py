@@ -63,3 +63,19 @@ def test_a_mapoca_run_saved_before_fresh_starts_and_random_spawns_existed_resume
     assert RunFolder(out, {"benchmark": 1, "trainer": Config().to_dict()}, resume=True).resumed
     with pytest.raises(ValueError, match="trainer.fresh_starts: saved null, now 0.5"):
         RunFolder(out, {"benchmark": 1, "trainer": Config(fresh_starts=0.5).to_dict()}, resume=True)
+
+
+# The MA-POCA fields of a run folder saved on 2026-11-28 (Benchmark 1, code 94032da).
+SAVED_MAPOCA_FIELDS = {
+    "adam_eps", "anneal_ent", "anneal_lr", "bf16", "checkpoint_every", "clip_eps", "content_box",
+    "deterministic_eval", "ent_coef", "eval_games", "gamma", "heads", "hidden", "lam", "layers", "lr",
+    "max_grad_norm", "n_arenas", "n_minibatches", "n_steps", "parameters", "players", "proj_attention",
+    "redraw_every", "senses", "skill_ranges", "total_steps", "update_epochs", "updates_per_chunk"}
+
+
+def test_every_mapoca_field_added_since_says_what_older_runs_played_with():
+    # Without an entry in ADDED_SETTINGS a saved run is refused on --resume ("saved null, now ...").
+    from trainers.runfolder import ADDED_SETTINGS
+    added = {f.name for f in dataclasses.fields(Config)} - SAVED_MAPOCA_FIELDS
+    assert added <= set(ADDED_SETTINGS), sorted(added - set(ADDED_SETTINGS))
+    assert all(ADDED_SETTINGS[k] == getattr(Config(), k) for k in added)

@@ -164,11 +164,19 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
         3 draw), and per player ``alive`` (bool[P]), ``damage_dealt`` (float32[P], to the boss
         this step, all multipliers applied) and ``back_attack`` (int32[P]).
     """
+    new, reward, done, info = _play(key, state, actions, params)
+    with jax.named_scope("observation"):
+        obs = observe(new, params)
+    return obs, new, reward, done, info
+
+
+def _play(key: jax.Array, state: State, actions: jax.Array, params: Params):
+    """``step`` without the observation: ``(state, reward, done, info)`` as ``step`` returns them
+    (``step_autoreset`` observes only the state it hands back)."""
     actions = check_actions(actions, params)
     n_players = actions.shape[0]
     n_sub = params.config.n_substeps
     was_done = state.result != RUNNING
-    table = damage.effect_table(params)
     seeds = jax.vmap(dice_seeds)(jax.random.split(key, n_sub))
     new, to_boss, back = advance(seeds, state.replace(memory=None), actions, params)
     new = new.replace(memory=state.memory)
@@ -190,9 +198,7 @@ def step(key: jax.Array, state: State, actions: jax.Array, params: Params):
         "damage_dealt": jnp.where(was_done, 0.0, to_boss[:n_players]),
         "back_attack": jnp.where(was_done, 0, back[:n_players]),
     }
-    with jax.named_scope("observation"):
-        obs = observe(new, params, table)
-    return obs, new, reward, done, info
+    return new, reward, done, info
 
 
 def team_reward(info: dict, done: jax.Array) -> jax.Array:
@@ -267,8 +273,14 @@ def step_autoreset(key: jax.Array, state: State, actions: jax.Array, params: Par
     not done.
     """
     k_step, k_reset = jax.random.split(key)
-    obs, new, reward, done, info = step(k_step, state, actions, params)
+    new, reward, done, info = _play(k_step, state, actions, params)
     with jax.named_scope("next_episode"):
-        obs_next, state_next = next_episode(k_reset, new, params)
-    info = {**info, "final_observation": obs, "final_result": new.result}
-    return lanes.select(done, obs_next, obs), lanes.select(done, state_next, new), reward, done, info
+        _, state_next = next_episode(k_reset, new, params)
+    state = lanes.select(done, state_next, new)
+    # One observation of the state handed back, not one per candidate: the episode's last one is
+    # computed only where a caller reads info["final_observation"] (XLA drops it otherwise).
+    table = damage.effect_table(params)
+    with jax.named_scope("observation"):
+        obs, final = observe(state, params, table), observe(new, params, table)
+    info = {**info, "final_observation": final, "final_result": new.result}
+    return obs, state, reward, done, info

@@ -17,6 +17,7 @@ import pytest
 from helpers import BOSS, make, scenario
 
 import raidjax
+from raidjax import observation
 from raidjax.types import N_ACTIONS
 
 OBSERVE = jax.jit(raidjax.observe)
@@ -113,6 +114,16 @@ def test_nearest_k_hostile_projectiles():
     assert o.projectile_mask[0].all()
     got = sorted(np.round(np.asarray(o.projectiles[0, :, 1]) * 20, 4).tolist())
     assert got == [1.0, 2.0, 3.0, 4.0]
+
+
+@pytest.mark.parametrize("m", [4, 7, 16])
+def test_nearest_lists_the_k_smallest_first_with_ties_to_the_lower_index_as_top_k(m):
+    rng = np.random.default_rng(m)
+    score = rng.integers(0, 4, size=(50, m)).astype(np.float32)  # many ties
+    score[rng.random((50, m)) < 0.4] = np.inf  # no hostile projectile there
+    got = jax.jit(lambda x: observation.nearest(x, 4))(jnp.asarray(score))
+    np.testing.assert_array_equal(np.asarray(got), np.asarray(jax.lax.top_k(-jnp.asarray(score), 4)[1]))
+    assert observation.nearest(jnp.asarray([[3.0, 1.0, jnp.inf, 1.0, 0.5]]), 4).tolist() == [[4, 1, 3, 0]]
 
 
 def test_walls_and_action_mask():

@@ -20,10 +20,10 @@ from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Eff
 
 
 class Contacts(NamedTuple):
-    """Where the pool's ``M`` slots stand against the ``U`` units before they move, each ``float32[M, U, ...]``:
-    ``t_in`` (how far along its
-    direction a straight missile enters the unit's reach, ``inf`` if never), ``dist`` (centre
-    distance), ``q0x``, ``q0y`` (the slot's position in the unit's body frame)."""
+    """Where the pool's ``M`` slots stand against the ``U`` units before they move, each
+    ``float32[M, U, ...]``: ``t_in`` (how far along its direction a straight missile enters the
+    unit's reach, ``inf`` if never), ``dist`` (centre distance), ``q0x``, ``q0y`` (the slot's
+    position in the unit's body frame)."""
 
     t_in: jax.Array
     dist: jax.Array

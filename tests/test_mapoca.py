@@ -20,10 +20,7 @@ from trainers import checkpoint
 from trainers.config import PRESETS, Config, load_config
 from trainers.mapoca import (
     Batch,
-    advantages,
-    explained_variance,
     fresh_start,
-    lambda_returns,
     load_policy,
     loss_fn,
     make_train,
@@ -31,6 +28,7 @@ from trainers.mapoca import (
     training_content,
 )
 from trainers.networks import Actor, Critic, masked_logits
+from trainers.returns import advantages, explained_variance, lambda_returns
 
 TINY = PRESETS["mapoca"]["cpu"].replace(n_arenas=4, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1,
                               heads=2, updates_per_chunk=2, total_steps=4 * 8 * 4, checkpoint_every=2,
@@ -45,20 +43,6 @@ def obs3():
     # Make the three decisions distinct so that networks see different inputs.
     noise = jax.random.normal(jax.random.PRNGKey(1), obs.self_features.shape) * 0.1
     return obs.replace(self_features=obs.self_features + noise)
-
-
-def test_lambda_returns_truncation_and_termination():
-    gamma, lam = 0.5, 0.5
-    r = jnp.array([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0], [4.0, 4.0]])
-    v_next = jnp.array([[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 40.0]])
-    done = jnp.array([[0, 0], [1, 1], [0, 0], [0, 0]], bool)
-    term = jnp.array([[0, 0], [0, 1], [0, 0], [0, 0]], bool)  # arena 0 truncates at t=1, arena 1 terminates
-    g = np.asarray(lambda_returns(r, v_next, done, term, gamma, lam))
-    # t=3 (rollout end): 4 + .5*40 = 24; t=2: 3 + .5*(.5*30 + .5*24) = 16.5
-    # arena 0, t=1 truncated: 2 + .5*20 = 12; t=0: 1 + .5*(.5*10 + .5*12) = 6.5
-    # arena 1, t=1 terminated: 2; t=0: 1 + .5*(.5*10 + .5*2) = 4
-    np.testing.assert_allclose(g[:, 0], [6.5, 12.0, 16.5, 24.0])
-    np.testing.assert_allclose(g[:, 1], [4.0, 2.0, 16.5, 24.0])
 
 
 def test_explained_variance_by_hand():
@@ -150,7 +134,7 @@ def _batch(obs3, actor, a_params, critic, c_params, ratio_factor=1.0) -> Batch:
     logp = jnp.take_along_axis(jax.nn.log_softmax(actor.apply(a_params, obs)), actions[..., None], -1)[..., 0]
     v, b = critic.apply(c_params, obs, actions)
     return Batch(obs, actions, logp - jnp.log(ratio_factor), alive, v - 0.1, b + 0.3,
-                 jnp.array([1.0, -2.0, 0.5]), jnp.array([[1.0, -1.0, 0.5], [2.0, 0.3, 0.0], [-0.7, 0.2, 1.1]]))
+                 jnp.array([1.0, -2.0, 0.5])[:, None].repeat(3, 1), jnp.array([[1.0, -1.0, 0.5], [2.0, 0.3, 0.0], [-0.7, 0.2, 1.1]]))
 
 
 def test_loss_terms_on_fixed_batch(obs3, critic):
@@ -173,7 +157,7 @@ def test_loss_terms_on_fixed_batch(obs3, critic):
     np.testing.assert_allclose(aux["policy_loss"], -(surr * m).sum() / m.sum(), rtol=1e-5)
     # Values sit 0.1 above their stored old values (inside the clip), baselines 0.3 below theirs
     # (outside: clipped to old - 0.2); each term takes the larger of the two squared errors.
-    g = batch.returns
+    g = batch.returns[:, 0]  # the group's return (every column)
     lv = np.maximum((v - g) ** 2, (v - g) ** 2).mean()
     lb = (np.maximum((b - g[:, None]) ** 2, (b + 0.3 - 0.2 - g[:, None]) ** 2) * m).sum() / m.sum()
     np.testing.assert_allclose(aux["value_loss"], lv, rtol=1e-5)

@@ -18,6 +18,7 @@ from pathlib import Path
 from raidjax import catalogue, pcg, validate
 from raidjax.types import SENSES
 from raidjax.validate import check_fields, is_number
+from trainers.returns import EPISODE_ENDS
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,6 +69,12 @@ class Config:
         random_spawns: in training only, every episode draws its spawns (``EnvConfig.random_spawns``:
             positions and headings), so a team cannot learn one opening by heart; evaluation plays
             the content as given (the reference's fixed spawns).
+        episode_ends: how a game's end reaches the λ-returns (``trainers.returns``): ``"reference"``
+            (ML-Agents 0.28 POCA on the reference build: a win and a timeout bootstrap from the
+            final observation's value, a loss does not, a player who dies while its teammates fight
+            on ends its own trajectory with a bootstrap; value loss over agent experiences),
+            ``"win_bootstrapped"`` (a win bootstraps; a death does not end a player's trajectory)
+            or ``"terminal"`` (a win and a loss are terminal: raidjax's learner before 2026-11-29).
         total_steps: environment decisions per seed.
         updates_per_chunk: updates per jitted chunk (one log row / progress line per chunk).
         checkpoint_every: checkpoint every this many updates (rounded up to whole chunks).
@@ -109,6 +116,7 @@ class Config:
     fresh_starts: float = 0.0
     random_spawns: bool = False
     senses: str = "raidjax"
+    episode_ends: str = "reference"
     # run length, checkpoints and the final evaluation
     total_steps: int = 1_000_000
     updates_per_chunk: int = 10
@@ -155,6 +163,7 @@ class Config:
         if self.content_box:
             pcg.make_space(self.parameters, self.players)  # ValueError naming a bad parameter
         validate.name("senses", self.senses, SENSES, "observation and action space")
+        validate.name("episode_ends", self.episode_ends, EPISODE_ENDS, "way a game's end reaches the returns")
         if self.hidden % self.heads:
             raise ValueError(f"heads: value {self.heads} must divide hidden = {self.hidden}")
 

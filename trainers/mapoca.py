@@ -12,17 +12,12 @@ trains every agent on its own + its teammates' individual rewards + the group re
 the one team reward ``r = 0.01 sum_i d_i + 1.0 w = sum_i r_i - (P - 1) w`` (the win bonus is a
 group reward, paid once, not once per player). Every agent therefore shares one λ-return G_t.
 
-Returns (posthumous credit). With V the centralised value of the *alive* agents and ``V'_t``
-the value of the state after step ``t`` in the same episode (``info['final_observation']`` at an
-episode end, the next observation otherwise)::
-
-    G_t = r_t + γ (1 - term_t) [(1 - λ_t) V'_t + λ_t G_{t+1}],   λ_t = λ (1 - done_t), λ_{T-1} = 0
-
-so a win or loss (termination) zeroes the bootstrap, a draw (truncation) bootstraps from the
-final state, and nothing depends on whether agent i is still alive: a dead agent's last action
-is credited with everything the group earns until the group's episode ends, through G and V.
-Agent i's advantage is ``A_ti = G_t - b_ti`` (counterfactual baseline), defined where agent i
-acted (was alive at t), normalised over those entries of the whole update.
+Returns (``trainers.returns``). How a game's end reaches the λ-returns is ``Config.episode_ends``:
+under ``"reference"`` (the default, as ML-Agents 0.28 POCA trains the reference build) a win and a
+timeout bootstrap from the value of the final observation, a loss does not, and a player who dies
+while its teammates fight on ends its own trajectory there with a bootstrap, so every agent has its
+own return ``G_ti``. Agent i's advantage is ``A_ti = G_ti - b_ti`` (counterfactual baseline),
+defined where agent i acted (was alive at t), normalised over those entries of the whole update.
 """
 
 from __future__ import annotations
@@ -39,11 +34,12 @@ from flax import struct
 import raidjax
 from raidjax import pcg
 from raidjax.env import team_reward
-from raidjax.types import WIN, Observation, Params, State
+from raidjax.types import LOSS, WIN, Observation, Params, State
 from trainers import checkpoint
 from trainers.config import Config
 from trainers.curriculum import draw_skills, next_draws, range_table, redraw, where_arenas, with_drawn
 from trainers.networks import Actor, Critic, sample_actions
+from trainers.returns import advantages, explained_variance, game_returns
 
 
 @struct.dataclass
@@ -74,10 +70,13 @@ class Transition:
     alive: jax.Array  # bool[N, P] agent acted (alive at the observation)
     value: jax.Array  # float32[N] V(s_t)
     baseline: jax.Array  # float32[N, P] b_i(s_t, a_-i)
-    next_value: jax.Array  # float32[N] V(s'_t), s'_t = the state after the step, same episode
+    next_value: jax.Array  # float32[N] V(s'_t) over the players alive in s'_t (the state after the step, same episode)
+    death_value: jax.Array  # float32[N] V(s'_t) over the players that acted (a dying player's bootstrap)
+    next_alive: jax.Array  # bool[N, P] alive in s'_t
     reward: jax.Array  # float32[N] team reward
     done: jax.Array  # bool[N] episode ended with this step
-    terminated: jax.Array  # bool[N] ... by a win or a loss
+    won: jax.Array  # bool[N] ... in a win
+    lost: jax.Array  # bool[N] ... in a loss
 
 
 class Batch(NamedTuple):
@@ -89,70 +88,19 @@ class Batch(NamedTuple):
     alive: jax.Array  # bool[B, P]
     value: jax.Array  # float32[B] old V
     baseline: jax.Array  # float32[B, P] old b
-    returns: jax.Array  # float32[B] λ-returns G
+    returns: jax.Array  # float32[B, P] λ-returns G_i (every column the group's unless episode_ends="reference")
     advantage: jax.Array  # float32[B, P] normalised G - b (0 where not alive)
 
 
-def lambda_returns(reward, next_value, done, terminated, gamma: float, lam: float) -> jax.Array:
-    """Group λ-returns, time-major (formula in the module docstring).
-
-    Args:
-        reward, next_value: ``float32[T, ...]``; done, terminated: ``bool[T, ...]``.
-
-    Returns:
-        ``float32[T, ...]`` G_t (the last step bootstraps from ``next_value[-1]`` unless terminated).
-    """
-
-    def body(g_next, x):
-        r, v, d, term = x
-        lam_t = lam * (1.0 - d)
-        g = r + gamma * (1.0 - term) * ((1.0 - lam_t) * v + lam_t * g_next)
-        return g, g
-
-    xs = (reward, next_value, done.astype(jnp.float32), terminated.astype(jnp.float32))
-    _, g = jax.lax.scan(body, next_value[-1], xs, reverse=True)
-    return g
-
-
-def advantages(returns: jax.Array, baseline: jax.Array, alive: jax.Array) -> jax.Array:
-    """Counterfactual advantages ``G - b_i``, normalised over the alive entries, 0 elsewhere.
-
-    Args:
-        returns: ``float32[...]``; baseline: ``float32[..., P]``; alive: ``bool[..., P]``.
-
-    Returns:
-        ``float32[..., P]``.
-    """
-    m = alive.astype(jnp.float32)
-    n = jnp.maximum(m.sum(), 1.0)
-    a = returns[..., None] - baseline
-    mean = jnp.sum(a * m) / n
-    std = jnp.sqrt(jnp.sum(jnp.square(a - mean) * m) / n)
-    return jnp.where(alive, (a - mean) / (std + 1e-8), 0.0)
-
-
-def explained_variance(pred: jax.Array, target: jax.Array, where: jax.Array | None = None) -> jax.Array:
-    """``1 - Var(target - pred) / Var(target)`` over the entries ``where`` (all by default): 1 for a
-    perfect critic, 0 for one that predicts the mean, negative for a worse one; 0 when the target
-    does not vary. ``pred``, ``target`` and ``where`` broadcast together. Returns ``float32[]``."""
-    pred, target = jnp.broadcast_arrays(pred, target)
-    m = jnp.ones(pred.shape, jnp.float32) if where is None else jnp.broadcast_to(where, pred.shape).astype(jnp.float32)
-    n = jnp.maximum(m.sum(), 1.0)
-
-    def var(x):
-        mean = jnp.sum(x * m) / n
-        return jnp.sum(jnp.square(x - mean) * m) / n
-
-    v = var(target)
-    return jnp.where(v > 0, 1.0 - var(target - pred) / jnp.where(v > 0, v, 1.0), 0.0)
-
-
-def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: float, ent_coef):
+def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: float, ent_coef,
+            value_rows: str = "decisions"):
     """MA-POCA loss ``L = L_pi + 0.5 (L_V + 0.5 L_b) - β H`` on one minibatch.
 
-    L_pi: PPO clipped surrogate; L_V / L_b: clipped squared regression of V / b onto G (max of
+    L_pi: PPO clipped surrogate; L_V / L_b: clipped squared regression of V / b_i onto G_i (max of
     the clipped and unclipped errors); H: entropy of the masked categorical. Policy, baseline
-    and entropy terms average over the agents that acted; L_V over decisions.
+    and entropy terms average over the agents that acted; L_V over decisions (``value_rows``
+    ``"decisions"``, onto the group's return) or over the agents that acted (``"agents"``, onto each
+    agent's return, as ML-Agents' buffer rows are agent experiences; ``episode_ends="reference"``).
 
     Returns:
         ``(loss: float32[], aux: dict of float32[])``.
@@ -176,8 +124,11 @@ def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: 
         clipped = old + jnp.clip(new - old, -clip_eps, clip_eps)
         return jnp.maximum(jnp.square(new - target), jnp.square(clipped - target))
 
-    l_v = jnp.mean(clipped_sq(value, batch.value, batch.returns))
-    l_b = jnp.sum(clipped_sq(baseline, batch.baseline, batch.returns[..., None]) * m) / n
+    if value_rows == "agents":
+        l_v = jnp.sum(clipped_sq(value[..., None], batch.value[..., None], batch.returns) * m) / n
+    else:  # every column holds the group's return
+        l_v = jnp.mean(clipped_sq(value, batch.value, batch.returns[..., 0]))
+    l_b = jnp.sum(clipped_sq(baseline, batch.baseline, batch.returns) * m) / n
     loss = l_pi + 0.5 * (l_v + 0.5 * l_b) - ent_coef * entropy
     aux = {
         "loss": loss, "policy_loss": l_pi, "value_loss": l_v, "baseline_loss": l_b, "entropy": entropy,
@@ -275,6 +226,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     env_params_of = jax.vmap(lambda content, sk: content if fixed_content else with_drawn(cfg, content, sk),
                              in_axes=(None, 0))
     step_all = jax.vmap(raidjax.step_autoreset)
+    value_rows = "agents" if cfg.episode_ends == "reference" else "decisions"
 
     def init(key: jax.Array, content: Params | None = None, range_set: jax.Array | None = None) -> Runner:
         """A fresh runner; ``content`` (unbatched Params) and ``range_set`` (``float32[RANGE_TABLE]``,
@@ -299,7 +251,10 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         value, baseline = critic.apply(p["critic"], obs, action)
         nxt, state, _, done, info = step_all(jax.random.split(k_env, n), runner.env_state, action,
                                              env_params_of(runner.content, runner.skills))
-        next_value = critic.apply(p["critic"], info["final_observation"], method=Critic.value)
+        final = info["final_observation"]
+        next_value = critic.apply(p["critic"], final, method=Critic.value)
+        death_value = (critic.apply(p["critic"], final, obs.alive, method=Critic.value)
+                       if cfg.episode_ends == "reference" else next_value)
         if cfg.fresh_starts > 0:
             state, nxt = fresh_start(jax.random.fold_in(k_rng, 1), cfg.fresh_starts, done, state, nxt,
                                      env_params_of(runner.content, runner.skills))
@@ -313,15 +268,16 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         won = done & (info["result"] == WIN)
         ep = {"episodes": done.sum(), "return_sum": jnp.sum(ep_ret * done), "wins": won.sum(),
               "draws": jnp.sum(done & info["truncated"]), "length_sum": jnp.sum(ep_len * done)}
-        tr = Transition(obs, action, logp, obs.alive, value, baseline, next_value, reward, done,
-                        info["terminated"])
+        tr = Transition(obs, action, logp, obs.alive, value, baseline, next_value, death_value, final.alive, reward,
+                        done, won, done & (info["result"] == LOSS))
         runner = runner.replace(env_state=state, obs=nxt, skills=skills, episode=episode, key=key,
                                 ep_return=jnp.where(done, 0.0, ep_ret), ep_length=jnp.where(done, 0, ep_len))
         return runner, (tr, ep)
 
     def update(runner: Runner):
         runner, (traj, ep) = jax.lax.scan(rollout_step, runner, None, t_len)
-        returns = lambda_returns(traj.reward, traj.next_value, traj.done, traj.terminated, cfg.gamma, cfg.lam)
+        returns = game_returns(cfg.episode_ends, traj.reward, traj.next_value, traj.death_value, traj.done, traj.won,
+                               traj.lost, traj.alive, traj.next_alive, cfg.gamma, cfg.lam)
         adv = advantages(returns, traj.baseline, traj.alive)
         flat = lambda x: x.reshape((t_len * n,) + x.shape[2:])
         batch = jax.tree.map(flat, Batch(traj.obs, traj.action, traj.logp, traj.alive, traj.value,
@@ -331,7 +287,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
 
         def minibatch(carry, mb):
             params, opt_state = carry
-            grads, aux = jax.grad(loss_fn, has_aux=True)(params, mb, actor, critic, cfg.clip_eps, beta)
+            grads, aux = jax.grad(loss_fn, has_aux=True)(params, mb, actor, critic, cfg.clip_eps, beta, value_rows)
             aux["grad_norm"] = jnp.sqrt(sum(jnp.sum(jnp.square(g)) for g in jax.tree.leaves(grads)))  # unclipped
             upd, opt_state = tx.update(grads, opt_state, params)
             return (optax.apply_updates(params, upd), opt_state), aux
@@ -347,8 +303,8 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         metrics = {k: v.mean() for k, v in aux.items()}
         metrics.update({k: v.sum().astype(jnp.float32) for k, v in ep.items()})
         metrics["value_mean"] = traj.value.mean()
-        metrics["value_explained_variance"] = explained_variance(traj.value, returns)
-        metrics["baseline_explained_variance"] = explained_variance(traj.baseline, returns[..., None], traj.alive)
+        metrics["value_explained_variance"] = explained_variance(traj.value[..., None], returns, traj.alive)
+        metrics["baseline_explained_variance"] = explained_variance(traj.baseline, returns, traj.alive)
         runner = runner.replace(params=params, opt_state=opt_state, key=key, update=runner.update + 1)
         return runner, metrics
 

@@ -223,10 +223,12 @@ class Critic(nn.Module):
         count = jnp.sum(mask, axis=-1, keepdims=True).astype(pooled.dtype) / mask.shape[-1]
         return head(self.body(jnp.concatenate([pooled, count], axis=-1)))[..., 0].astype(jnp.float32)
 
-    def value(self, obs: Observation) -> jax.Array:
-        """V(s) over the alive agents: ``obs [..., P, ...]`` -> ``float32[...]``."""
+    def value(self, obs: Observation, agents: jax.Array | None = None) -> jax.Array:
+        """V(s) over the agents ``agents: bool[..., P]`` (default: the alive ones, ``obs.alive``):
+        ``obs [..., P, ...]`` -> ``float32[...]``."""
+        agents = obs.alive if agents is None else agents
         e = nn.relu(self.obs_emb(critic_inputs(obs)))
-        return self._head(self.rsa(e, obs.alive), obs.alive, self.value_head)
+        return self._head(self.rsa(e, agents), agents, self.value_head)
 
     def baseline(self, obs: Observation, actions: jax.Array) -> jax.Array:
         """Counterfactual baselines b_i = Q(s, a_-i): agent i enters with its observation only,

@@ -134,7 +134,8 @@ def _batch(obs3, actor, a_params, critic, c_params, ratio_factor=1.0) -> Batch:
     logp = jnp.take_along_axis(jax.nn.log_softmax(actor.apply(a_params, obs)), actions[..., None], -1)[..., 0]
     v, b = critic.apply(c_params, obs, actions)
     return Batch(obs, actions, logp - jnp.log(ratio_factor), alive, v - 0.1, b + 0.3,
-                 jnp.array([1.0, -2.0, 0.5])[:, None].repeat(3, 1), jnp.array([[1.0, -1.0, 0.5], [2.0, 0.3, 0.0], [-0.7, 0.2, 1.1]]))
+                 jnp.array([1.0, -2.0, 0.5])[:, None].repeat(3, 1),
+                 jnp.array([[1.0, -1.0, 0.5], [2.0, 0.3, 0.0], [-0.7, 0.2, 1.1]]))
 
 
 def test_loss_terms_on_fixed_batch(obs3, critic):

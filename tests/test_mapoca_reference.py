@@ -50,8 +50,9 @@ def test_networks_on_reference_observations():
     assert value.shape == (2,) and baseline.shape == (2, 3)
 
 
-def test_train_checkpoint_and_playtest_with_reference_senses(tmp_path):
-    cfg = TINY
+@pytest.mark.parametrize("network", ["raidjax", "reference"])
+def test_train_checkpoint_and_playtest_with_reference_senses(tmp_path, network):
+    cfg = TINY.replace(network=network)
     keys = jax.random.split(jax.random.PRNGKey(0), 1)
     trainer = make_trainer(cfg)
     init = jax.jit(jax.vmap(trainer.init))  # one run, vmapped as the command line trains it

@@ -20,6 +20,8 @@ from raidjax.types import SENSES
 from raidjax.validate import check_fields, is_number
 from trainers.returns import EPISODE_ENDS
 
+NETWORKS = ("raidjax", "reference")  # Config.network
+
 
 @dataclasses.dataclass(frozen=True)
 class Config:
@@ -69,6 +71,14 @@ class Config:
         random_spawns: in training only, every episode draws its spawns (``EnvConfig.random_spawns``:
             positions and headings), so a team cannot learn one opening by heart; evaluation plays
             the content as given (the reference's fixed spawns).
+        network: the networks' layout (``trainers.networks`` / ``trainers.reference_networks``):
+            ``"raidjax"`` (ReLU layers, the entity embeddings ``hidden`` wide, attention without a
+            LayerNorm after its residual and logits ÷ √(head width), a flat critic input per agent,
+            the agent count before the critic's body, flax's initial weights) or ``"reference"``
+            (ML-Agents 0.28's POCA networks layer by layer: Swish, a 128-wide observation encoder
+            with its own attention in the actor and in the critic for every agent, LayerNorm after
+            the residual, logits ÷ √(width), the count after the critic's body, ML-Agents' initial
+            weights; the ``paper`` preset).
         episode_ends: how a game's end reaches the λ-returns (``trainers.returns``): ``"reference"``
             (ML-Agents 0.28 POCA on the reference build: a win and a timeout bootstrap from the
             final observation's value, a loss does not, a player who dies while its teammates fight
@@ -116,6 +126,7 @@ class Config:
     fresh_starts: float = 0.0
     random_spawns: bool = False
     senses: str = "raidjax"
+    network: str = "raidjax"
     episode_ends: str = "reference"
     # run length, checkpoints and the final evaluation
     total_steps: int = 1_000_000
@@ -164,8 +175,11 @@ class Config:
             pcg.make_space(self.parameters, self.players)  # ValueError naming a bad parameter
         validate.name("senses", self.senses, SENSES, "observation and action space")
         validate.name("episode_ends", self.episode_ends, EPISODE_ENDS, "way a game's end reaches the returns")
+        validate.name("network", self.network, NETWORKS, "network layout")
         if self.hidden % self.heads:
             raise ValueError(f"heads: value {self.heads} must divide hidden = {self.hidden}")
+        if self.network == "reference" and 128 % self.heads:
+            raise ValueError(f"heads: value {self.heads} must divide 128 (the reference network's attention width)")
 
     def replace(self, **kw) -> Config:
         """A copy with fields changed (checked again); unknown fields raise ``TypeError``."""
@@ -228,7 +242,8 @@ _MAPOCA_PRESETS = {
     "paper": Config(n_arenas=_PAPER_ARENAS, n_steps=256, n_minibatches=_PAPER_MINIBATCHES, update_epochs=3,
                     lr=3e-4, anneal_lr=False, adam_eps=1e-8, max_grad_norm=0.0, hidden=256, layers=2, heads=4,
                     ent_coef=0.01, anneal_ent=False, lam=0.95, gamma=0.99, clip_eps=0.2,
-                    total_steps=-(-PAPER_AGENT_STEPS // 3), redraw_every=2, senses="reference"),
+                    total_steps=-(-PAPER_AGENT_STEPS // 3), redraw_every=2, senses="reference", network="reference",
+                    episode_ends="reference"),
     # Chosen by a measured sweep on the reference senses (docs/results/benchmark1.md, "Choosing the
     # cpu preset"): 256 arenas x 32 decisions per update amortise the step on a 2-core CPU; a 2 x 64
     # network with teammate-only attention (projectiles join the self features); 3 epochs of 32

@@ -39,6 +39,7 @@ from trainers import checkpoint
 from trainers.config import Config
 from trainers.curriculum import draw_skills, next_draws, range_table, redraw, where_arenas, with_drawn
 from trainers.networks import Actor, Critic, sample_actions
+from trainers.reference_networks import ReferenceActor, ReferenceCritic
 from trainers.returns import advantages, explained_variance, game_returns
 
 
@@ -186,6 +187,17 @@ def fresh_start(key: jax.Array, p: float, done: jax.Array, state: State, obs: Ob
     return where_arenas(fresh, state_f, state), where_arenas(fresh, obs_f, obs)
 
 
+def make_networks(cfg: Config):
+    """``(actor, critic)`` flax modules of ``cfg.network``'s layout (``trainers.networks`` or
+    ``trainers.reference_networks``; same methods)."""
+    dtype = jnp.bfloat16 if cfg.bf16 else jnp.float32
+    if cfg.network == "reference":
+        return (ReferenceActor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, dtype),
+                ReferenceCritic(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, dtype))
+    return Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, dtype), Critic(cfg.hidden, cfg.layers,
+                                                                                         cfg.heads, dtype)
+
+
 def make_trainer(config: Config, base_params: Params | None = None, redraw_ranges: bool | None = None,
                  fixed_content: bool = False) -> Trainer:
     """Build the pure training functions for ``config``.
@@ -211,9 +223,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     default_set = range_table(cfg.skill_ranges)
     multi_range = len(cfg.skill_ranges) > 1 if redraw_ranges is None else redraw_ranges
     multi_range = (multi_range or cfg.content_box) and not fixed_content
-    dtype = jnp.bfloat16 if cfg.bf16 else jnp.float32
-    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, dtype)
-    critic = Critic(cfg.hidden, cfg.layers, cfg.heads, dtype)
+    actor, critic = make_networks(cfg)
     n, t_len = cfg.n_arenas, cfg.n_steps
     if cfg.redraw_every < 1:
         raise ValueError(f"redraw_every: value {cfg.redraw_every} must be >= 1 (episodes per range draw)")
@@ -252,8 +262,8 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         nxt, state, _, done, info = step_all(jax.random.split(k_env, n), runner.env_state, action,
                                              env_params_of(runner.content, runner.skills))
         final = info["final_observation"]
-        next_value = critic.apply(p["critic"], final, method=Critic.value)
-        death_value = (critic.apply(p["critic"], final, obs.alive, method=Critic.value)
+        next_value = critic.apply(p["critic"], final, method="value")
+        death_value = (critic.apply(p["critic"], final, obs.alive, method="value")
                        if cfg.episode_ends == "reference" else next_value)
         if cfg.fresh_starts > 0:
             state, nxt = fresh_start(jax.random.fold_in(k_rng, 1), cfg.fresh_starts, done, state, nxt,
@@ -375,6 +385,6 @@ def load_policy(path: str | Path, seed: int = 0, deterministic: bool | None = No
     if not 0 <= seed < n_seeds:
         raise checkpoint.CheckpointError(f"seed: {seed} not in the checkpoint's {n_seeds} seeds")
     weights = jax.tree.map(lambda x: jnp.asarray(x[seed]), weights)
-    actor = Actor(cfg.hidden, cfg.layers, cfg.heads, cfg.proj_attention, jnp.bfloat16 if cfg.bf16 else jnp.float32)
+    actor, _ = make_networks(cfg)
     greedy = cfg.deterministic_eval if deterministic is None else bool(deterministic)
     return TeamPolicy(actor, greedy, cfg.senses), weights

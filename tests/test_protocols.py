@@ -26,10 +26,9 @@ from trainers.generate import method_policy
 
 def test_agent_step_conversion_by_hand():
     # 8192 // (256 * 3) = 10, so 11 arenas x 256 decisions x 3 players = 8448 > 8192 experiences
-    # (10 arenas would be 7680 <= 8192). 8448 // 256 = 33 minibatches wanted; the decisions
-    # 2816 = 2^8 x 11 have divisors ... 22, 32, 44 ...: 32 is nearest to 33.
-    assert from_agent_steps(8192, 256, 256, 3) == (11, 32)
-    # 1000 // (10 * 2) = 50 -> 51 arenas, 510 decisions, want 1020 // 100 = 10: divisor 10.
+    # (10 arenas would be 7680 <= 8192). 8448 // 256 = 33 minibatches of 256 experiences, a divisor.
+    assert from_agent_steps(8192, 256, 256, 3) == (11, 33)
+    # 1000 // (10 * 2) = 50 -> 51 arenas, 1020 experiences, want 1020 // 100 = 10: divisors 10, 12 -> 10.
     assert from_agent_steps(1000, 100, 10, 2) == (51, 10)
 
 
@@ -38,7 +37,8 @@ def test_paper_preset_mirrors_the_reference_yaml():
     assert (p.anneal_lr, p.max_grad_norm, p.adam_eps, p.anneal_ent) == (False, 0.0, 1e-8, False)
     assert (p.lr, p.ent_coef, p.clip_eps, p.lam, p.update_epochs, p.gamma) == (3e-4, 0.01, 0.2, 0.95, 3, 0.99)
     assert (p.hidden, p.layers, p.heads, p.n_steps) == (256, 2, 4, 256)
-    assert (p.n_arenas, p.n_minibatches, p.decisions_per_update) == (11, 32, 2816)
+    assert (p.n_arenas, p.n_minibatches, p.decisions_per_update) == (11, 33, 2816)
+    assert (p.minibatch_rows, p.network, p.episode_ends) == ("agents", "reference", "reference")
     assert p.redraw_every == 2
     # max_steps 5e7 agent steps = ceil(5e7 / 3) decisions with 3 players alive
     assert p.total_steps == 16_666_667 and 3 * (p.total_steps - 1) < 50_000_000 <= 3 * p.total_steps

@@ -71,6 +71,12 @@ class Config:
         random_spawns: in training only, every episode draws its spawns (``EnvConfig.random_spawns``:
             positions and headings), so a team cannot learn one opening by heart; evaluation plays
             the content as given (the reference's fixed spawns).
+        minibatch_rows: what a minibatch's samples are: ``"decisions"`` (a decision with its
+            players; ``n_minibatches`` divides ``n_arenas * n_steps``) or ``"agents"`` (one player's
+            experience in one decision, as ML-Agents' buffer rows are: ``n_minibatches`` divides
+            ``n_arenas * n_steps * P`` rows, the live ones taken first in a random order each
+            epoch, and a minibatch is skipped unless every row in it is live, as ML-Agents drops
+            the rows past ``len // batch_size`` minibatches).
         network: the networks' layout (``trainers.networks`` / ``trainers.reference_networks``):
             ``"raidjax"`` (ReLU layers, the entity embeddings ``hidden`` wide, attention without a
             LayerNorm after its residual and logits ÷ √(head width), a flat critic input per agent,
@@ -127,6 +133,7 @@ class Config:
     random_spawns: bool = False
     senses: str = "raidjax"
     network: str = "raidjax"
+    minibatch_rows: str = "decisions"
     episode_ends: str = "reference"
     # run length, checkpoints and the final evaluation
     total_steps: int = 1_000_000
@@ -176,6 +183,7 @@ class Config:
         validate.name("senses", self.senses, SENSES, "observation and action space")
         validate.name("episode_ends", self.episode_ends, EPISODE_ENDS, "way a game's end reaches the returns")
         validate.name("network", self.network, NETWORKS, "network layout")
+        validate.name("minibatch_rows", self.minibatch_rows, ("decisions", "agents"), "kind of sample")
         if self.hidden % self.heads:
             raise ValueError(f"heads: value {self.heads} must divide hidden = {self.hidden}")
         if self.network == "reference" and 128 % self.heads:
@@ -208,7 +216,8 @@ def known_fields(cls, d: dict) -> dict:
 
 
 def from_agent_steps(buffer: int, batch: int, horizon: int, players: int = 3) -> tuple[int, int]:
-    """``(n_arenas, n_minibatches)`` of an update holding ML-Agents' buffer, counted in decisions.
+    """``(n_arenas, n_minibatches)`` of an update holding ML-Agents' buffer, with minibatches of
+    agent experiences (``minibatch_rows="agents"``).
 
     ML-Agents updates once its buffer holds *more than* ``buffer`` agent experiences
     (``poca/trainer.py``: ``num_experiences > buffer_size``), filled with trajectories of
@@ -216,14 +225,13 @@ def from_agent_steps(buffer: int, batch: int, horizon: int, players: int = 3) ->
     experiences per epoch. With every player alive a decision is ``players`` experiences, so
     ``n_arenas = buffer // (horizon * players) + 1`` arenas of ``horizon`` decisions are the
     first whole number of trajectories past ``buffer`` (8192, 256, 256, 3: 11 arenas = 8448
-    experiences = 33 trajectories), and ``n_minibatches`` is the divisor of the update's
-    decisions nearest to ``8448 // 256 = 33`` (ties: the smaller; 32 minibatches of 88 decisions,
-    264 experiences, where ML-Agents takes 33 of 256).
+    experiences = 33 trajectories), and ``n_minibatches`` is the divisor of those experiences
+    nearest to ``8448 // 256 = 33`` (ties: the smaller): 33 minibatches of 256, as ML-Agents takes.
     """
     n_arenas = buffer // (horizon * players) + 1
-    decisions = n_arenas * horizon
-    want = decisions * players // batch
-    divisors = [d for d in range(1, decisions + 1) if decisions % d == 0]
+    rows = n_arenas * horizon * players
+    want = rows // batch
+    divisors = [d for d in range(1, rows + 1) if rows % d == 0]
     return n_arenas, min(divisors, key=lambda d: (abs(d - want), d))
 
 
@@ -233,17 +241,17 @@ _PAPER_ARENAS, _PAPER_MINIBATCHES = from_agent_steps(buffer=8192, batch=256, hor
 _MAPOCA_PRESETS = {
     # The reference trainer (Experiment/MA/RL_HEURISTIC/configs/configuration_range5.yaml, ML-Agents
     # 0.28 POCA), field by field: buffer 8192 and batch 256 agent experiences (from_agent_steps:
-    # 11 arenas x 256 decisions, 32 minibatches), time_horizon 256, 3 epochs, 2 x 256 hidden, 4
+    # 11 arenas x 256 decisions, 33 minibatches of 256 agent experiences), time_horizon 256, 3 epochs, 2 x 256 hidden, 4
     # heads, lr 3e-4 and beta 0.01 constant (the yaml sets every schedule to constant), epsilon
     # 0.2, lambda 0.95, gamma 0.99, torch Adam (eps 1e-8), no gradient clipping, max_steps 5e7
     # agent steps = 5e7 / 3 decisions with all players alive, the reference player's senses
-    # (its observation, encoded as networks.Actor does for it, and its 8 actions). Differences
-    # left: docs/GAME.md.
+    # (its observation and its 8 actions), ML-Agents' networks (reference_networks), a game's end as
+    # the reference trainer's (returns.py). Differences left: docs/PROTOCOLS.md §12.
     "paper": Config(n_arenas=_PAPER_ARENAS, n_steps=256, n_minibatches=_PAPER_MINIBATCHES, update_epochs=3,
                     lr=3e-4, anneal_lr=False, adam_eps=1e-8, max_grad_norm=0.0, hidden=256, layers=2, heads=4,
                     ent_coef=0.01, anneal_ent=False, lam=0.95, gamma=0.99, clip_eps=0.2,
                     total_steps=-(-PAPER_AGENT_STEPS // 3), redraw_every=2, senses="reference", network="reference",
-                    episode_ends="reference"),
+                    minibatch_rows="agents", episode_ends="reference"),
     # Chosen by a measured sweep on the reference senses (docs/results/benchmark1.md, "Choosing the
     # cpu preset"): 256 arenas x 32 decisions per update amortise the step on a 2-core CPU; a 2 x 64
     # network with teammate-only attention (projectiles join the self features); 3 epochs of 32

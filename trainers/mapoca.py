@@ -94,7 +94,7 @@ class Batch(NamedTuple):
 
 
 def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: float, ent_coef,
-            value_rows: str = "decisions"):
+            value_rows: str = "decisions", agent: jax.Array | None = None):
     """MA-POCA loss ``L = L_pi + 0.5 (L_V + 0.5 L_b) - β H`` on one minibatch.
 
     L_pi: PPO clipped surrogate; L_V / L_b: clipped squared regression of V / b_i onto G_i (max of
@@ -103,37 +103,56 @@ def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: 
     ``"decisions"``, onto the group's return) or over the agents that acted (``"agents"``, onto each
     agent's return, as ML-Agents' buffer rows are agent experiences; ``episode_ends="reference"``).
 
+    Args:
+        batch: ``[M, P, ...]`` decisions (fields as ``Batch``).
+        agent: ``None`` (every player of each decision is a sample) or ``int32[M]``: row ``r`` is
+            the experience of player ``agent[r]`` in decision ``r`` only (``Config.minibatch_rows
+            = "agents"``, ML-Agents' rows); the value loss is then over rows.
+
     Returns:
         ``(loss: float32[], aux: dict of float32[])``.
     """
-    logits = actor.apply(params["actor"], batch.obs)
+    if agent is None:
+        logits = actor.apply(params["actor"], batch.obs)
+        value, baseline = critic.apply(params["critic"], batch.obs, batch.action)
+        action, old_logp, adv, alive, returns = batch.action, batch.logp, batch.advantage, batch.alive, batch.returns
+        old_baseline = batch.baseline
+    else:
+        rows = jnp.arange(agent.shape[0])
+        pick = lambda x: x[rows, agent]
+        logits = actor.apply(params["actor"], jax.tree.map(pick, batch.obs))
+        value = critic.apply(params["critic"], batch.obs, method="value")
+        baseline = critic.apply(params["critic"], batch.obs, batch.action, agent, method="baseline")
+        action, old_logp, adv, alive, returns, old_baseline = map(
+            pick, (batch.action, batch.logp, batch.advantage, batch.alive, batch.returns, batch.baseline))
+        value_rows = "agents"
     logp_all = jax.nn.log_softmax(logits)
-    logp = jnp.take_along_axis(logp_all, batch.action[..., None], axis=-1)[..., 0]
-    m = batch.alive.astype(jnp.float32)
+    logp = jnp.take_along_axis(logp_all, action[..., None], axis=-1)[..., 0]
+    m = alive.astype(jnp.float32)
     n = jnp.maximum(m.sum(), 1.0)
-    ratio = jnp.exp(logp - batch.logp)
-    adv = batch.advantage
+    ratio = jnp.exp(logp - old_logp)
     surrogate = jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - clip_eps, 1 + clip_eps) * adv)
     l_pi = -jnp.sum(surrogate * m) / n
     probs = jnp.exp(logp_all)
-    ent = -jnp.sum(jnp.where(batch.obs.action_mask, probs * logp_all, 0.0), axis=-1)
+    mask = batch.obs.action_mask if agent is None else pick(batch.obs.action_mask)
+    ent = -jnp.sum(jnp.where(mask, probs * logp_all, 0.0), axis=-1)
     entropy = jnp.sum(ent * m) / n
-
-    value, baseline = critic.apply(params["critic"], batch.obs, batch.action)
 
     def clipped_sq(new, old, target):
         clipped = old + jnp.clip(new - old, -clip_eps, clip_eps)
         return jnp.maximum(jnp.square(new - target), jnp.square(clipped - target))
 
+    old_value = batch.value
     if value_rows == "agents":
-        l_v = jnp.sum(clipped_sq(value[..., None], batch.value[..., None], batch.returns) * m) / n
+        per_row = lambda x: x if agent is not None else x[..., None]
+        l_v = jnp.sum(clipped_sq(per_row(value), per_row(old_value), returns) * m) / n
     else:  # every column holds the group's return
-        l_v = jnp.mean(clipped_sq(value, batch.value, batch.returns[..., 0]))
-    l_b = jnp.sum(clipped_sq(baseline, batch.baseline, batch.returns) * m) / n
+        l_v = jnp.mean(clipped_sq(value, old_value, returns[..., 0]))
+    l_b = jnp.sum(clipped_sq(baseline, old_baseline, returns) * m) / n
     loss = l_pi + 0.5 * (l_v + 0.5 * l_b) - ent_coef * entropy
     aux = {
         "loss": loss, "policy_loss": l_pi, "value_loss": l_v, "baseline_loss": l_b, "entropy": entropy,
-        "approx_kl": jnp.sum(((ratio - 1) - (logp - batch.logp)) * m) / n,
+        "approx_kl": jnp.sum(((ratio - 1) - (logp - old_logp)) * m) / n,
         "clip_frac": jnp.sum((jnp.abs(ratio - 1) > clip_eps) * m) / n,
     }
     return loss, aux
@@ -227,7 +246,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     n, t_len = cfg.n_arenas, cfg.n_steps
     if cfg.redraw_every < 1:
         raise ValueError(f"redraw_every: value {cfg.redraw_every} must be >= 1 (episodes per range draw)")
-    if (n * t_len) % cfg.n_minibatches:
+    if cfg.minibatch_rows == "decisions" and (n * t_len) % cfg.n_minibatches:
         raise ValueError(f"n_minibatches: {cfg.n_minibatches} does not divide {n * t_len} decisions per update")
     grad_steps = cfg.num_updates * cfg.update_epochs * cfg.n_minibatches
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
@@ -237,6 +256,11 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
                              in_axes=(None, 0))
     step_all = jax.vmap(raidjax.step_autoreset)
     value_rows = "agents" if cfg.episode_ends == "reference" else "decisions"
+    by_rows = cfg.minibatch_rows == "agents"
+    n_players = len(cfg.players)
+    if by_rows and (n * t_len * n_players) % cfg.n_minibatches:
+        raise ValueError(f"n_minibatches: {cfg.n_minibatches} does not divide {n * t_len * n_players} agent "
+                         "experiences per update (minibatch_rows 'agents')")
 
     def init(key: jax.Array, content: Params | None = None, range_set: jax.Array | None = None) -> Runner:
         """A fresh runner; ``content`` (unbatched Params) and ``range_set`` (``float32[RANGE_TABLE]``,
@@ -307,10 +331,37 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
             mbs = jax.tree.map(lambda x: x[perm].reshape((cfg.n_minibatches, -1) + x.shape[1:]), batch)
             return jax.lax.scan(minibatch, carry, mbs)
 
+        def minibatch_of_rows(carry, ids):
+            """One minibatch of agent experiences ``ids int32[M]`` (row = decision * P + player);
+            skipped unless all ``M`` are live, as ML-Agents drops a buffer's leftover rows."""
+            params, opt_state = carry
+            mb = jax.tree.map(lambda x: x[ids // n_players], batch)
+            agent = ids % n_players
+            grads, aux = jax.grad(loss_fn, has_aux=True)(params, mb, actor, critic, cfg.clip_eps, beta, "agents",
+                                                         agent)
+            aux["grad_norm"] = jnp.sqrt(sum(jnp.sum(jnp.square(g)) for g in jax.tree.leaves(grads)))
+            upd, new_opt = tx.update(grads, opt_state, params)
+            full = jnp.all(mb.alive[jnp.arange(ids.shape[0]), agent])
+            keep = lambda new, old: jax.tree.map(lambda a, b: jnp.where(full, a, b), new, old)
+            aux["taken"] = full.astype(jnp.float32)
+            return (keep(optax.apply_updates(params, upd), params), keep(new_opt, opt_state)), aux
+
+        def epoch_of_rows(carry, k):
+            # The live rows in a random order, then the dead ones: minibatches of live rows first.
+            live = batch.alive.reshape(-1)
+            u = jax.random.uniform(k, live.shape)
+            ids = jnp.argsort(jnp.where(live, u, u + 2.0)).astype(jnp.int32)
+            return jax.lax.scan(minibatch_of_rows, carry, ids.reshape(cfg.n_minibatches, -1))
+
         key, k_perm = jax.random.split(runner.key)
-        (params, opt_state), aux = jax.lax.scan(epoch, (runner.params, runner.opt_state),
+        (params, opt_state), aux = jax.lax.scan(epoch_of_rows if by_rows else epoch, (runner.params, runner.opt_state),
                                                 jax.random.split(k_perm, cfg.update_epochs))
-        metrics = {k: v.mean() for k, v in aux.items()}
+        if by_rows:  # averages over the minibatches taken; "taken": their share
+            taken = aux["taken"]
+            metrics = {k: jnp.sum(v * taken) / jnp.maximum(taken.sum(), 1.0) for k, v in aux.items()}
+            metrics["taken"] = taken.mean()
+        else:
+            metrics = {k: v.mean() for k, v in aux.items()}
         metrics.update({k: v.sum().astype(jnp.float32) for k, v in ep.items()})
         metrics["value_mean"] = traj.value.mean()
         metrics["value_explained_variance"] = explained_variance(traj.value[..., None], returns, traj.alive)

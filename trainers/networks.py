@@ -230,22 +230,29 @@ class Critic(nn.Module):
         e = nn.relu(self.obs_emb(critic_inputs(obs)))
         return self._head(self.rsa(e, agents), agents, self.value_head)
 
-    def baseline(self, obs: Observation, actions: jax.Array) -> jax.Array:
+    def baseline(self, obs: Observation, actions: jax.Array, agent: jax.Array | None = None) -> jax.Array:
         """Counterfactual baselines b_i = Q(s, a_-i): agent i enters with its observation only,
         alive teammates with (observation, action); dead teammates are masked out.
 
         Args:
             obs: fields ``[..., P, ...]``.
             actions: ``int32[..., P]``.
+            agent: ``None`` (every agent's baseline) or ``int32[...]`` (only that agent's).
 
         Returns:
-            ``float32[..., P]`` (row i is agent i's baseline; meaningful where agent i is alive).
+            ``float32[..., P]`` (row i is agent i's baseline; meaningful where agent i is alive), or
+            ``float32[...]`` with ``agent``.
         """
         x = critic_inputs(obs)
         p = x.shape[-2]
         e_o = nn.relu(self.obs_emb(x))
         one_hot = jax.nn.one_hot(actions, obs.action_mask.shape[-1])
         e_oa = nn.relu(self.obs_act_emb(jnp.concatenate([x, one_hot], axis=-1)))
+        if agent is not None:
+            me = jax.nn.one_hot(agent, p, dtype=bool)  # [..., j]: token j is observation-only
+            tokens = jnp.where(me[..., None], e_o, e_oa)
+            mask = obs.alive | me
+            return self._head(self.rsa(tokens, mask), mask, self.baseline_head)
         qkv_o, qkv_oa = self.rsa.project(e_o), self.rsa.project(e_oa)  # per-token, shared by all i
         eye = jnp.eye(p, dtype=bool)  # [i, j]: token j of agent i's baseline is observation-only
         tokens = jnp.where(eye[..., None], e_o[..., None, :, :], e_oa[..., None, :, :])  # [..., i, j, H]

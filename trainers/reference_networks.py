@@ -182,14 +182,19 @@ class ReferenceCritic(nn.Module):
         e = nn.swish(self.obs_emb(self.encoder(obs)))
         return self._head(self.rsa(e, agents), agents, self.value_head)
 
-    def baseline(self, obs, actions: jax.Array) -> jax.Array:
+    def baseline(self, obs, actions: jax.Array, agent: jax.Array | None = None) -> jax.Array:
         """b_i = Q(s, a_-i): agent i observation-only, its alive teammates with their actions;
-        ``obs [..., P, ...]``, ``actions int32[..., P]`` -> ``float32[..., P]``."""
+        ``obs [..., P, ...]``, ``actions int32[..., P]`` -> ``float32[..., P]``, or ``float32[...]``
+        for the one agent ``agent int32[...]``."""
         enc = self.encoder(obs)
         p = enc.shape[-2]
         e_o = nn.swish(self.obs_emb(enc))
         one_hot = jax.nn.one_hot(actions, obs.action_mask.shape[-1], dtype=enc.dtype)
         e_oa = nn.swish(self.obs_act_emb(jnp.concatenate([enc, one_hot], axis=-1)))
+        if agent is not None:
+            me = jax.nn.one_hot(agent, p, dtype=bool)
+            mask = obs.alive | me
+            return self._head(self.rsa(jnp.where(me[..., None], e_o, e_oa), mask), mask, self.baseline_head)
         eye = jnp.eye(p, dtype=bool)
         tokens = jnp.where(eye[..., None], e_o[..., None, :, :], e_oa[..., None, :, :])  # [..., i, j, H]
         mask = obs.alive[..., None, :] | eye

@@ -8,7 +8,7 @@ The λ-return, time-major, for one trajectory (an arena's team, or one agent)::
 ``V'_t`` is the critic's value of the state after step ``t`` in the same episode; ``end_t`` cuts
 the trajectory there (the next step belongs to another episode, or the agent died); ``term_t``
 zeroes the bootstrap (nothing follows). This is ML-Agents' ``lambda_return``
-(``trainers/trainer/trainer_utils.py``, ``r[t] + γλ G[t+1] + (1 - λ) γ V[t+1]``, the last step
+(``poca/trainer.py`` 308-317, ``r[t] + γλ G[t+1] + (1 - λ) γ V[t+1]``, the last step
 ``r + γ value_next``) applied to every trajectory the reference trainer cuts.
 
 What ends where (``episode_ends``):

@@ -51,7 +51,8 @@ class RunFolderError(ValueError):
 # the fixed spawns; episode_ends: every earlier run made a win terminal (today's default is the
 # reference trainer's "reference", so such a run resumes only with episode_ends "terminal" set).
 ADDED_SETTINGS = {"senses": "raidjax", "fast_compile": False, "fresh_starts": 0.0, "random_spawns": False,
-                  "episode_ends": "terminal", "network": "raidjax"}
+                  "episode_ends": "terminal", "network": "raidjax",
+                  "minibatch_rows": "decisions"}
 
 
 def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:

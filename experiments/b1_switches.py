@@ -79,13 +79,20 @@ def trained_teams(run_dir: Path):
 def evaluate(run_dir: Path, games: int, seed: int = 4242) -> list[dict]:
     """One dict per (switch, range, team): ``switch``, ``range``, ``agent`` (``MA-POCA`` with its
     ``seed`` and ``senses``, or ``PT-HR``) and ``trainers.runs.chained_win_rates`` of its ``games``."""
+    trainer = json.loads((run_dir / "config.json").read_text()).get("trainer")
+    actor, weights, teams, senses, greedy = trained_teams(run_dir) if trainer == "mapoca" else table_teams(run_dir)
+    return play_switches(actor, weights, teams, senses, greedy, games, seed)
+
+
+def play_switches(actor, weights, teams: list[dict], senses: str, greedy: bool, games: int,
+                  seed: int = 4242) -> list[dict]:
+    """``evaluate``'s rows for trained teams: ``actor`` with ``weights`` (a leading axis over
+    ``teams``, dicts with ``ranges`` (one range: the reference content's) and ``seed``)."""
     import raidjax
     from experiments.benchmark1 import _stack, per_team
     from raidjax.playtest import auto_games_per_arena
     from trainers.runs import chained_win_rates
 
-    trainer = json.loads((run_dir / "config.json").read_text()).get("trainer")
-    actor, weights, teams, senses, greedy = trained_teams(run_dir) if trainer == "mapoca" else table_teams(run_dir)
     k = auto_games_per_arena(games)
     key = jax.random.PRNGKey(seed)
 

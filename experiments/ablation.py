@@ -1,0 +1,170 @@
+"""MA-POCA on the reference player's senses, the reference trainer's rows added one at a time
+(docs/results/ablation.md; PROTOCOLS.md §12, "The reference trainer, row by row").
+
+    python -m experiments.ablation --out runs/ablation [--variants today reference_ends ...] [--resume]
+
+Every variant is the `cpu` preset on the reference senses with ``VARIANTS``' overrides. It trains
+``len(ranges) x seeds`` runs (default ranges 9 and 13, 3 seeds, 1.5 M decisions each) as one
+vmapped program, run ``i`` from ``fold_in(PRNGKey(seed), i)`` in every variant, each on the
+reference content at its range (as Benchmark 1's table runs), then plays every team by the one
+protocol, chained arenas after a warm-up (``experiments.b1_switches``: ``--games`` games per team
+under the reference rules, without the carried cooldowns and under the clean rules, PT-HR on the
+same games). Each variant is a run folder ``OUT/<variant>`` (stages ``train``, ``play``; killed at
+any point, ``--resume`` continues from the last checkpoint); ``OUT/ablation.md`` tabulates the
+variants played so far.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import raidjax
+from experiments.b1_switches import SWITCHES, play_switches
+from raidjax.io import HelpFormatter, atomic_write, run_cli, whole_number_arg
+from trainers import checkpoint, loop
+from trainers.config import PRESETS, Config
+from trainers.curriculum import RANGE_TABLE, range_table
+from trainers.mapoca import make_trainer
+from trainers.runfolder import RunFolder, markdown_table
+from trainers.runs import mapoca_learner
+
+_REFERENCE_ENDS = {"episode_ends": "reference"}
+_OPTIMISER = {**_REFERENCE_ENDS, "ent_coef": 0.01, "adam_eps": 1e-8, "max_grad_norm": 0.0}
+_AGENT_ROWS = {**_OPTIMISER, "minibatch_rows": "agents", "n_minibatches": 96}  # 8192 x 3 / 96 = 256 rows
+# name: (what it changes, overrides of the cpu preset on the reference senses); the order of the table.
+VARIANTS = {
+    "today": ("the learner before 2026-11-29: a win is terminal, a death does not end a trajectory",
+              {"episode_ends": "terminal"}),
+    "win_bootstrapped": ("a win bootstraps from the final observation's value (row 1 alone)",
+                         {"episode_ends": "win_bootstrapped"}),
+    "reference_ends": ("the reference trainer's game ends: a win bootstraps, a death ends that player's "
+                       "trajectory with a bootstrap, value loss over agent experiences (rows 1-2, 7)", _REFERENCE_ENDS),
+    "optimiser": ("+ entropy 0.01, Adam eps 1e-8, no gradient clipping (rows 8-9)", _OPTIMISER),
+    "agent_rows": ("+ minibatches of 256 agent experiences, 96 per epoch (row 10)", _AGENT_ROWS),
+    "network": ("+ ML-Agents' networks, hidden 64 (rows 11-15)", {**_AGENT_ROWS, "network": "reference"}),
+}
+
+
+def variant_config(name: str, total_steps: int) -> Config:
+    """The `cpu` preset on the reference senses with variant ``name``'s overrides."""
+    return PRESETS["mapoca"]["cpu"].replace(senses="reference", total_steps=total_steps, eval_games=0,
+                                            **VARIANTS[name][1])
+
+
+def run_inputs(ranges, seeds: int, seed: int):
+    """``(teams, (keys, contents, range tables))``: run ``i = r * seeds + s`` plays ``ranges[r]``."""
+    teams = [{"ranges": (float(r),), "seed": s} for r in ranges for s in range(seeds)]
+    keys = jnp.stack([jax.random.fold_in(jax.random.PRNGKey(seed), i) for i in range(len(teams))])
+    contents = jax.tree.map(lambda *x: jnp.stack(x), *[raidjax.make_params(skill_range=t["ranges"][0]) for t in teams])
+    tables = jnp.stack([range_table(t["ranges"], size=RANGE_TABLE) for t in teams])
+    return teams, (keys, contents, tables)
+
+
+def train_variant(rf: RunFolder, cfg: Config, inputs, n_runs: int) -> dict:
+    """Train the variant's runs in one vmapped program (checkpoints in ``rf``); timing figures."""
+    trainer = make_trainer(cfg, redraw_ranges=True)
+
+    def row(m: dict) -> dict:
+        win = np.asarray(m["wins"]) / np.maximum(np.asarray(m["episodes"]), 1)
+        ent = np.asarray(m["entropy"])
+        return {**{f"win/{i}": float(w) for i, w in enumerate(win)}, **{f"entropy/{i}": float(e) for i, e in
+                                                                       enumerate(ent)}}
+
+    describe = lambda r: "training win " + " ".join(f"{r[k]:.2f}" for k in r if k.startswith("win/"))
+    learner = mapoca_learner(trainer, inputs, n_runs, row=row, describe=describe)
+    done = loop.train(learner, rf.path("checkpoints"), rf.out / "train", log=rf.log, checkpoint_every=10)
+    decisions = cfg.num_updates * cfg.decisions_per_update
+    return {"runs": n_runs, "decisions_per_run": decisions, "train_seconds": done.seconds,
+            "compile_seconds": done.compile_seconds, "decisions_per_s": decisions * n_runs / max(done.seconds, 1e-9)}
+
+
+def final_actors(rf: RunFolder, cfg: Config, inputs):
+    """``(actor, weights [n_runs, ...])`` from the variant's final checkpoint."""
+    trainer = make_trainer(cfg, redraw_ranges=True)
+    abstract = jax.eval_shape(jax.vmap(trainer.init), *inputs)
+    final = rf.out / "checkpoints" / str(cfg.num_updates)
+    runner, _, _ = checkpoint.restore(final, abstract)
+    return trainer.actor, runner.params["actor"]
+
+
+def table(out: Path) -> str:
+    """``ablation.md``: per variant, range and seed, all games / first game / lowest position / positions
+    below PT-HR's / without the carry / clean rules, and PT-HR's row per range."""
+    lines = []
+    for name, (what, _) in VARIANTS.items():
+        path = out / name / "play.jsonl"
+        if not path.exists():
+            continue
+        rows = [json.loads(x) for x in path.read_text().splitlines()]
+        by = {(r["switch"], r["range"], r["agent"], r.get("seed")): r for r in rows}
+        body = []
+        for rg in sorted({r["range"] for r in rows}):
+            hr = by[("reference", rg, "PT-HR", None)]
+            body.append([f"PT-HR, range {rg:g}", hr["win_rate"], hr["win_rate_first_game"],
+                         min(hr["win_rate_by_position"]), "",
+                         by[("carry_cooldowns=False", rg, "PT-HR", None)]["win_rate"],
+                         by[("clean", rg, "PT-HR", None)]["win_rate"]])
+            for s in sorted({r["seed"] for r in rows if r["agent"] == "MA-POCA" and r["range"] == rg}):
+                t = by[("reference", rg, "MA-POCA", s)]
+                below = sum(a < b for a, b in zip(t["win_rate_by_position"], hr["win_rate_by_position"], strict=True))
+                body.append([f"range {rg:g}, seed {s}", t["win_rate"], t["win_rate_first_game"],
+                             min(t["win_rate_by_position"]), below,
+                             by[("carry_cooldowns=False", rg, "MA-POCA", s)]["win_rate"],
+                             by[("clean", rg, "MA-POCA", s)]["win_rate"]])
+        lines += [f"### {name}: {what}", "", markdown_table(
+            ["team", "reference rules", "first game", "lowest position", "positions below PT-HR",
+             "carry_cooldowns=False", "clean rules"], body), ""]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> str:
+    ap = argparse.ArgumentParser(prog="python -m experiments.ablation", description=__doc__.split("\n")[0],
+                                 formatter_class=HelpFormatter)
+    ap.add_argument("--out", type=Path, required=True, help="folder of the variants' run folders")
+    ap.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS)[:3],
+                    help="variants to train and play, in this order")
+    ap.add_argument("--ranges", nargs="+", type=float, default=[9.0, 13.0], help="skill ranges (reference content)")
+    ap.add_argument("--seeds", type=whole_number_arg(1), default=3, help="training seeds per range")
+    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed of the runs (the same in every variant)")
+    ap.add_argument("--total-steps", type=whole_number_arg(1), default=1_500_000, help="decisions per run")
+    ap.add_argument("--games", type=whole_number_arg(1), default=1000, help="chained games per team and rule switch")
+    ap.add_argument("--resume", action="store_true", help="continue the variants already started in --out")
+    args = ap.parse_args(argv)
+    for r in args.ranges:
+        if not 1 <= r <= 20:
+            raise ValueError(f"--ranges: value {r:g}; allowed: numbers in [1, 20]")
+    teams, inputs = run_inputs(args.ranges, args.seeds, args.seed)
+    for name in args.variants:
+        cfg = variant_config(name, args.total_steps)
+        rf = RunFolder(args.out / name, {"ablation": name, "config": cfg.to_dict(), "ranges": args.ranges,
+                                         "seeds": args.seeds, "seed": args.seed, "games": args.games},
+                       resume=args.resume and (args.out / name / "config.json").exists())
+        timing = rf.stage("train", lambda cfg=cfg, rf=rf: train_variant(rf, cfg, inputs, len(teams)))
+
+        def play(cfg=cfg, rf=rf):
+            actor, weights = final_actors(rf, cfg, inputs)
+            rows = play_switches(actor, weights, teams, cfg.senses, cfg.deterministic_eval, args.games)
+            stamp = raidjax.io.machine()
+            atomic_write(rf.path("play.jsonl"), "".join(json.dumps({**r, "games": args.games, "machine": stamp}) + "\n"
+                                                        for r in rows))
+            return {"rows": len(rows)}
+
+        rf.stage("play", play)
+        if not (rf.out / "summary.json").exists():
+            rf.finish({"ablation": name, "train": timing, "switches": list(SWITCHES)})
+    text = table(args.out)
+    atomic_write(args.out / "ablation.md", text + "\n")
+    print(text)
+    return text
+
+
+if __name__ == "__main__":
+    run_cli(main, (ValueError, checkpoint.CheckpointError),
+            "finished stages and the newest checkpoint are kept: rerun the same command with --resume")
+

@@ -93,15 +93,40 @@ def final_actors(rf: RunFolder, cfg: Config, inputs):
     return trainer.actor, runner.params["actor"]
 
 
+def overview(plays: dict[str, list[dict]]) -> str:
+    """One row per variant: per range, the seeds' mean win rate under the reference rules / without
+    the carry / under the clean rules, and the chain positions (all seeds) below PT-HR's."""
+    ranges = sorted({r["range"] for rows in plays.values() for r in rows})
+    body = []
+    for name, rows in plays.items():
+        by = {(r["switch"], r["range"], r["agent"], r.get("seed")): r for r in rows}
+        cells = [name]
+        for rg in ranges:
+            hr = by.get(("reference", rg, "PT-HR", None))
+            seeds = sorted({r["seed"] for r in rows if r["agent"] == "MA-POCA" and r["range"] == rg})
+            if hr is None or not seeds:
+                cells += ["", ""]
+                continue
+            team = {(sw, s): by[(sw, rg, "MA-POCA", s)] for sw in SWITCHES for s in seeds}
+            means = [np.mean([team[(sw, s)]["win_rate"] for s in seeds]) for sw in SWITCHES]
+            below = sum(a < b for s in seeds for a, b in zip(team[("reference", s)]["win_rate_by_position"],
+                                                              hr["win_rate_by_position"], strict=True))
+            n_pos = len(seeds) * len(hr["win_rate_by_position"])
+            cells += [" / ".join(f"{m:.3f}" for m in means), f"{below} of {n_pos}"]
+        body.append(cells)
+    header = ["variant"] + [h for rg in ranges for h in (f"range {rg:g}: reference / no carry / clean",
+                                                           f"range {rg:g}: positions below PT-HR")]
+    return markdown_table(header, body)
+
+
 def table(out: Path) -> str:
-    """``ablation.md``: per variant, range and seed, all games / first game / lowest position / positions
-    below PT-HR's / without the carry / clean rules, and PT-HR's row per range."""
-    lines = []
-    for name, (what, _) in VARIANTS.items():
-        path = out / name / "play.jsonl"
-        if not path.exists():
-            continue
-        rows = [json.loads(x) for x in path.read_text().splitlines()]
+    """``ablation.md``: the overview, then per variant, range and seed, all games / first game / lowest
+    position / positions below PT-HR's / without the carry / clean rules, and PT-HR's row per range."""
+    plays = {name: [json.loads(x) for x in (out / name / "play.jsonl").read_text().splitlines()]
+             for name in VARIANTS if (out / name / "play.jsonl").exists()}
+    lines = [overview(plays), ""] if plays else []
+    for name, rows in plays.items():
+        what = VARIANTS[name][0]
         by = {(r["switch"], r["range"], r["agent"], r.get("seed")): r for r in rows}
         body = []
         for rg in sorted({r["range"] for r in rows}):

@@ -40,3 +40,4 @@ def test_table_from_play_rows(tmp_path):
     # the team: 0.6 overall, first game 1.0, lowest position 0.2, one position below PT-HR's 0.5, 0.1, 0.9
     assert "| range 9, seed 0 | 0.600 | 1.000 | 0.200 | 1 | 0.100 | 0.900 |" in text
     assert "| PT-HR, range 9 | 0.500 | 0.500 | 0.500 |  | 0.400 | 0.300 |" in text
+    assert "| today | 0.600 / 0.100 / 0.900 | 1 of 2 |" in text  # the overview: one seed, two positions

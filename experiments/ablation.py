@@ -47,7 +47,8 @@ VARIANTS = {
                        "trajectory with a bootstrap, value loss over agent experiences (rows 1-2, 7)", _REFERENCE_ENDS),
     "optimiser": ("+ entropy 0.01, Adam eps 1e-8, no gradient clipping (rows 8-9)", _OPTIMISER),
     "agent_rows": ("+ minibatches of 256 agent experiences, 96 per epoch (row 10)", _AGENT_ROWS),
-    "network": ("+ ML-Agents' networks, hidden 64 (rows 11-15)", {**_AGENT_ROWS, "network": "reference"}),
+    "network": ("+ ML-Agents' networks, hidden 64, 4 heads (rows 11-15)",
+                {**_AGENT_ROWS, "network": "reference", "heads": 4}),
 }
 
 

@@ -52,7 +52,7 @@ def test_networks_on_reference_observations():
 
 @pytest.mark.parametrize("network", ["raidjax", "reference"])
 def test_train_checkpoint_and_playtest_with_reference_senses(tmp_path, network):
-    cfg = TINY.replace(network=network)
+    cfg = TINY.replace(network=network, heads=4 if network == "reference" else TINY.heads)
     keys = jax.random.split(jax.random.PRNGKey(0), 1)
     trainer = make_trainer(cfg)
     init = jax.jit(jax.vmap(trainer.init))  # one run, vmapped as the command line trains it

@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from trainers.mapoca import Batch, loss_fn
+from trainers.mapoca import Batch, last_seen, loss_fn
 from trainers.networks import Actor, Critic
 from trainers.returns import game_returns, lambda_returns
 
@@ -131,3 +131,32 @@ def test_value_loss_rows():
     np.testing.assert_allclose(float(aux["value_loss"]), expect, rtol=1e-5)
     _, aux = loss_fn(w, batch, actor, critic, 0.2, 0.0, "decisions")
     np.testing.assert_allclose(float(aux["value_loss"]), ((v[0] - 1) ** 2 + (v[1] - 4) ** 2) / 2, rtol=1e-5)
+
+
+def test_a_player_dying_in_the_winning_step_does_not_bootstrap():
+    # ML-Agents marks every agent of a game's last step done before it processes any, so a player
+    # who died in it (done, not interrupted) has its whole group done: its bootstrap is zeroed,
+    # while its teammates (interrupted) bootstrap.
+    reward, next_value, death_value, done, won, lost, alive, next_alive = game("win")
+    next_alive = next_alive.at[END, 0, 0].set(False)  # [T, N, P]: player 0 of the one arena
+    g = np.asarray(game_returns("reference", reward, next_value, death_value.at[END].set(5.0), done, won, lost,
+                                alive, next_alive, GAMMA, LAM))[:, 0]
+    assert g[END, 0] == pytest.approx(R[END])
+    assert g[END, 1] == pytest.approx(R[END] + GAMMA * V_FINAL)
+
+
+def test_a_dying_player_is_seen_as_before_its_death():
+    import raidjax
+
+    params = raidjax.make_params(observation="reference", action_space="reference")
+    obs, _ = jax.vmap(raidjax.reset, in_axes=(0, None))(jax.random.split(jax.random.key(0), 2), params)
+    final = jax.tree.map(lambda x: x * 0 if x.dtype == jnp.float32 else x, obs)
+    final = final.replace(alive=final.alive.at[0, 1].set(False))
+    seen = last_seen(obs, final)
+    np.testing.assert_array_equal(np.asarray(seen.alive), np.asarray(final.alive))
+    earlier = obs.replace(alive=final.alive)  # the alive mask is the one after the step
+    for before, after, got in zip(jax.tree.leaves(earlier), jax.tree.leaves(final), jax.tree.leaves(seen),
+                                  strict=True):
+        np.testing.assert_array_equal(np.asarray(got[0, 1]), np.asarray(before[0, 1]))  # died: as before
+        np.testing.assert_array_equal(np.asarray(got[1]), np.asarray(after[1]))  # the rest: as after
+        np.testing.assert_array_equal(np.asarray(got[0, 0]), np.asarray(after[0, 0]))

@@ -76,7 +76,8 @@ class Config:
             experience in one decision, as ML-Agents' buffer rows are: ``n_minibatches`` divides
             ``n_arenas * n_steps * P`` rows, the live ones taken first in a random order each
             epoch, and a minibatch is skipped unless every row in it is live, as ML-Agents drops
-            the rows past ``len // batch_size`` minibatches).
+            the rows past ``len // batch_size`` minibatches). The value loss is then over rows
+            whatever ``episode_ends`` says, and ``anneal_lr`` counts the minibatches taken.
         network: the networks' layout (``trainers.networks`` / ``trainers.reference_networks``):
             ``"raidjax"`` (ReLU layers, the entity embeddings ``hidden`` wide, attention without a
             LayerNorm after its residual and logits ÷ √(head width), a flat critic input per agent,
@@ -186,8 +187,9 @@ class Config:
         validate.name("minibatch_rows", self.minibatch_rows, ("decisions", "agents"), "kind of sample")
         if self.hidden % self.heads:
             raise ValueError(f"heads: value {self.heads} must divide hidden = {self.hidden}")
-        if self.network == "reference" and 128 % self.heads:
-            raise ValueError(f"heads: value {self.heads} must divide 128 (the reference network's attention width)")
+        if self.network == "reference" and self.heads != 4:
+            raise ValueError(f"heads: value {self.heads}; allowed with network 'reference': 4 (ML-Agents' attention "
+                             "has 4 heads, no setting changes it)")
 
     def replace(self, **kw) -> Config:
         """A copy with fields changed (checked again); unknown fields raise ``TypeError``."""

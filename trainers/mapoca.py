@@ -187,6 +187,19 @@ def training_content(cfg: Config, params: Params) -> Params:
     return params
 
 
+def last_seen(obs: Observation, final: Observation) -> Observation:
+    """``final`` (``[N, P, ...]``, the observation after a step) with every player who died in the
+    step (alive in ``obs``, not in ``final``) seen as in ``obs``: raidjax blanks a dead player's
+    observation, while ML-Agents collects a real one at its death (``Agent.NotifyAgentDone``), which
+    its bootstrap reads (``trainers.returns``)."""
+    died = obs.alive & ~final.alive
+
+    def pick(before, after):
+        return jnp.where(died.reshape(died.shape + (1,) * (after.ndim - 2)), before, after)
+
+    return jax.tree.map(pick, obs, final).replace(alive=final.alive)
+
+
 def fresh_start(key: jax.Array, p: float, done: jax.Array, state: State, obs: Observation,
                 params: Params) -> tuple[State, Observation]:
     """Arenas whose episode just ended (``done bool[N]``) start the next one fresh with probability
@@ -287,7 +300,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
                                              env_params_of(runner.content, runner.skills))
         final = info["final_observation"]
         next_value = critic.apply(p["critic"], final, method="value")
-        death_value = (critic.apply(p["critic"], final, obs.alive, method="value")
+        death_value = (critic.apply(p["critic"], last_seen(obs, final), obs.alive, method="value")
                        if cfg.episode_ends == "reference" else next_value)
         if cfg.fresh_starts > 0:
             state, nxt = fresh_start(jax.random.fold_in(k_rng, 1), cfg.fresh_starts, done, state, nxt,
@@ -364,7 +377,9 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
             metrics = {k: v.mean() for k, v in aux.items()}
         metrics.update({k: v.sum().astype(jnp.float32) for k, v in ep.items()})
         metrics["value_mean"] = traj.value.mean()
-        metrics["value_explained_variance"] = explained_variance(traj.value[..., None], returns, traj.alive)
+        metrics["value_explained_variance"] = (explained_variance(traj.value[..., None], returns, traj.alive)
+                                               if value_rows == "agents" else explained_variance(traj.value,
+                                                                                                  returns[..., 0]))
         metrics["baseline_explained_variance"] = explained_variance(traj.baseline, returns, traj.alive)
         runner = runner.replace(params=params, opt_state=opt_state, key=key, update=runner.update + 1)
         return runner, metrics

@@ -166,8 +166,9 @@ class ReferenceCritic(nn.Module):
         self.obs_act_emb = nn.Dense(h, kernel_init=small_normal(h), dtype=dt)
         self.rsa = ReferenceSelfAttention(h, self.heads, dt)
         self.body = [nn.Dense(h, kernel_init=kaiming((0.125 / h) ** 0.5), dtype=dt) for _ in range(self.layers)]
-        self.value_head = nn.Dense(1, kernel_init=nn.initializers.xavier_uniform(), dtype=dt)
-        self.baseline_head = nn.Dense(1, kernel_init=nn.initializers.xavier_uniform(), dtype=dt)
+        # One head for the value and the baselines, as ML-Agents' POCAValueNetwork.value_heads (poca/
+        # optimizer_torch.py 61-62): they differ only in their inputs.
+        self.head = nn.Dense(1, kernel_init=nn.initializers.xavier_uniform(), dtype=dt)
 
     def _head(self, pooled: jax.Array, mask: jax.Array, head) -> jax.Array:
         x = pooled
@@ -180,7 +181,7 @@ class ReferenceCritic(nn.Module):
         """V(s) over ``agents: bool[..., P]`` (default ``obs.alive``): ``obs [..., P, ...]`` -> ``float32[...]``."""
         agents = obs.alive if agents is None else agents
         e = nn.swish(self.obs_emb(self.encoder(obs)))
-        return self._head(self.rsa(e, agents), agents, self.value_head)
+        return self._head(self.rsa(e, agents), agents, self.head)
 
     def baseline(self, obs, actions: jax.Array, agent: jax.Array | None = None) -> jax.Array:
         """b_i = Q(s, a_-i): agent i observation-only, its alive teammates with their actions;
@@ -194,11 +195,11 @@ class ReferenceCritic(nn.Module):
         if agent is not None:
             me = jax.nn.one_hot(agent, p, dtype=bool)
             mask = obs.alive | me
-            return self._head(self.rsa(jnp.where(me[..., None], e_o, e_oa), mask), mask, self.baseline_head)
+            return self._head(self.rsa(jnp.where(me[..., None], e_o, e_oa), mask), mask, self.head)
         eye = jnp.eye(p, dtype=bool)
         tokens = jnp.where(eye[..., None], e_o[..., None, :, :], e_oa[..., None, :, :])  # [..., i, j, H]
         mask = obs.alive[..., None, :] | eye
-        return self._head(self.rsa(tokens, mask), mask, self.baseline_head)
+        return self._head(self.rsa(tokens, mask), mask, self.head)
 
     def __call__(self, obs, actions: jax.Array):
         """``(value [...], baseline [..., P])``."""

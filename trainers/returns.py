@@ -21,7 +21,9 @@ What ends where (``episode_ends``):
   done_reached and not interrupted`` as ``done``). A **player who dies while its teammates fight
   on** ends its own trajectory there and bootstraps from the critic's value of the state after the
   step, itself included with its live teammates (``agent_processor.py``: its last step carries its
-  teammates' observations). So returns are per agent, ``float32[T, N, P]``, and the value loss is
+  teammates' observations; a dead player's own observation is blank in raidjax, so it enters with
+  its last live one); one who dies in a game's last step does not bootstrap. So returns are per
+  agent, ``float32[T, N, P]``, and the value loss is
   averaged over agent experiences, as ML-Agents' buffer rows are.
 * ``"win_bootstrapped"``: a win bootstraps as above, but the group's return runs through a
   player's death (posthumous credit) and the value loss averages over decisions.
@@ -70,8 +72,9 @@ def game_returns(ends: str, reward, next_value, death_value, done, won, lost, al
     Args:
         reward, next_value: ``float32[T, N]``: the team reward and V of the state after the step
             over the players alive after it (``info["final_observation"]`` at an episode's end).
-        death_value: ``float32[T, N]``: V of the same state over the players that acted at ``t``
-            (read under ``"reference"`` only: a dying player's bootstrap).
+        death_value: ``float32[T, N]``: V of the same state over the players that acted at ``t``,
+            a player who died in the step entering with its observation before it (read under
+            ``"reference"`` only: a dying player's bootstrap).
         done, won, lost: ``bool[T, N]``: the episode ended with the step, in a win, in a loss.
         alive, next_alive: ``bool[T, N, P]``: who acted at ``t``; who is alive after the step.
 
@@ -83,7 +86,10 @@ def game_returns(ends: str, reward, next_value, death_value, done, won, lost, al
         died = alive & ~next_alive
         end = done[..., None] | died
         v = jnp.where(died, death_value[..., None], next_value[..., None])
-        return lambda_returns(reward[..., None], v, end, lost[..., None], gamma, lam)
+        # A player who dies in a game's last step is done, not interrupted, and its group is all done
+        # with it (ML-Agents marks every agent of that step done before it processes any): no bootstrap.
+        terminal = lost[..., None] | (died & done[..., None])
+        return lambda_returns(reward[..., None], v, end, terminal, gamma, lam)
     terminal = lost if ends == "win_bootstrapped" else won | lost
     g = lambda_returns(reward, next_value, done, terminal, gamma, lam)
     return jnp.broadcast_to(g[..., None], alive.shape)

@@ -53,7 +53,8 @@ VARIANTS = {
 
 
 def variant_config(name: str, total_steps: int) -> Config:
-    """The `cpu` preset on the reference senses with variant ``name``'s overrides."""
+    """The `cpu` preset on the reference senses with variant ``name``'s overrides (every variant sets
+    ``episode_ends``, so the preset's own choice, made from this ablation, does not enter)."""
     return PRESETS["mapoca"]["cpu"].replace(senses="reference", total_steps=total_steps, eval_games=0,
                                             **VARIANTS[name][1])
 

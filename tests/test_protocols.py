@@ -44,6 +44,7 @@ def test_paper_preset_mirrors_the_reference_yaml():
     assert p.total_steps == 16_666_667 and 3 * (p.total_steps - 1) < 50_000_000 <= 3 * p.total_steps
     cpu = PRESETS["mapoca"]["cpu"]  # raidjax's own choices stay on the other presets (the issue-51 sweep's)
     assert (cpu.max_grad_norm, cpu.adam_eps, cpu.ent_coef) == (0.5, 1e-5, 0.003)
+    assert cpu.episode_ends == "terminal"  # chosen by experiments.ablation (docs/results/ablation.md)
 
 
 # --- range redraw cadence ------------------------------------------------------------------

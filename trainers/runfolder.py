@@ -48,8 +48,8 @@ class RunFolderError(ValueError):
 # Settings added after run folders were first saved, with the value every older run played with:
 # a saved run without the key resumes as long as the new value is that one.
 # MA-POCA's fresh_starts and random_spawns: every earlier run continued its arenas' chains and played
-# the fixed spawns; episode_ends: every earlier run made a win terminal (today's default is the
-# reference trainer's "reference", so such a run resumes only with episode_ends "terminal" set).
+# the fixed spawns; episode_ends: every earlier run made a win terminal (the cpu preset still does;
+# the Config default is the reference trainer's "reference").
 ADDED_SETTINGS = {"senses": "raidjax", "fast_compile": False, "fresh_starts": 0.0, "random_spawns": False,
                   "episode_ends": "terminal", "network": "raidjax",
                   "minibatch_rows": "decisions"}

@@ -144,16 +144,19 @@ def minibatch_flops(trainer, runner) -> float:
     from trainers.mapoca import Batch, loss_fn
 
     cfg = trainer.config
-    b = cfg.decisions_per_update // cfg.n_minibatches
+    p = len(cfg.players)
+    by_rows = cfg.minibatch_rows == "agents"  # a minibatch of agent experiences: b rows, one player each
+    b = cfg.decisions_per_update * (p if by_rows else 1) // cfg.n_minibatches
     one = raidjax.with_senses(raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0]),
                               cfg.senses)
     obs, _ = jax.vmap(raidjax.reset, (0, None))(jax.random.split(jax.random.PRNGKey(0), b), one)
-    p = len(cfg.players)
     batch = Batch(obs, jnp.zeros((b, p), jnp.int32), jnp.zeros((b, p)), jnp.ones((b, p), bool), jnp.zeros(b),
-                  jnp.zeros((b, p)), jnp.zeros(b), jnp.zeros((b, p)))
+                  jnp.zeros((b, p)), jnp.zeros((b, p)), jnp.zeros((b, p)))
+    agent = jnp.arange(b, dtype=jnp.int32) % p if by_rows else None
+    rows = "agents" if by_rows or cfg.episode_ends == "reference" else "decisions"
     grad = jax.grad(loss_fn, has_aux=True)
-    compiled = jax.jit(lambda prm, bt: grad(prm, bt, trainer.actor, trainer.critic, cfg.clip_eps, cfg.ent_coef)
-                       ).lower(runner.params, batch).compile()
+    compiled = jax.jit(lambda prm, bt: grad(prm, bt, trainer.actor, trainer.critic, cfg.clip_eps, cfg.ent_coef,
+                                            rows, agent)).lower(runner.params, batch).compile()
     cost = compiled.cost_analysis()
     cost = cost[0] if isinstance(cost, list) else cost
     return float(cost["flops"])

@@ -121,8 +121,7 @@ def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: 
         rows = jnp.arange(agent.shape[0])
         pick = lambda x: x[rows, agent]
         logits = actor.apply(params["actor"], jax.tree.map(pick, batch.obs))
-        value = critic.apply(params["critic"], batch.obs, method="value")
-        baseline = critic.apply(params["critic"], batch.obs, batch.action, agent, method="baseline")
+        value, baseline = critic.apply(params["critic"], batch.obs, batch.action, agent)
         action, old_logp, adv, alive, returns, old_baseline = map(
             pick, (batch.action, batch.logp, batch.advantage, batch.alive, batch.returns, batch.baseline))
         value_rows = "agents"
@@ -142,12 +141,11 @@ def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: 
         clipped = old + jnp.clip(new - old, -clip_eps, clip_eps)
         return jnp.maximum(jnp.square(new - target), jnp.square(clipped - target))
 
-    old_value = batch.value
     if value_rows == "agents":
         per_row = lambda x: x if agent is not None else x[..., None]
-        l_v = jnp.sum(clipped_sq(per_row(value), per_row(old_value), returns) * m) / n
+        l_v = jnp.sum(clipped_sq(per_row(value), per_row(batch.value), returns) * m) / n
     else:  # every column holds the group's return
-        l_v = jnp.mean(clipped_sq(value, old_value, returns[..., 0]))
+        l_v = jnp.mean(clipped_sq(value, batch.value, returns[..., 0]))
     l_b = jnp.sum(clipped_sq(baseline, old_baseline, returns) * m) / n
     loss = l_pi + 0.5 * (l_v + 0.5 * l_b) - ent_coef * entropy
     aux = {

@@ -261,9 +261,9 @@ class Critic(nn.Module):
         pooled = self.rsa.attend(tokens, qkv, mask)
         return self._head(pooled, mask, self.baseline_head)
 
-    def __call__(self, obs: Observation, actions: jax.Array):
-        """``(value [...], baseline [..., P])``."""
-        return self.value(obs), self.baseline(obs, actions)
+    def __call__(self, obs: Observation, actions: jax.Array, agent: jax.Array | None = None):
+        """``(value [...], baseline [..., P])`` (``[...]`` for one ``agent``, see ``baseline``)."""
+        return self.value(obs), self.baseline(obs, actions, agent)
 
 
 def sample_actions(key, logits: jax.Array, alive: jax.Array, deterministic: bool = False):

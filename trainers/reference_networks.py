@@ -180,16 +180,18 @@ class ReferenceCritic(nn.Module):
     def value(self, obs, agents: jax.Array | None = None) -> jax.Array:
         """V(s) over ``agents: bool[..., P]`` (default ``obs.alive``): ``obs [..., P, ...]`` -> ``float32[...]``."""
         agents = obs.alive if agents is None else agents
-        e = nn.swish(self.obs_emb(self.encoder(obs)))
-        return self._head(self.rsa(e, agents), agents, self.head)
+        e_o = nn.swish(self.obs_emb(self.encoder(obs)))
+        return self._head(self.rsa(e_o, agents), agents, self.head)
 
     def baseline(self, obs, actions: jax.Array, agent: jax.Array | None = None) -> jax.Array:
         """b_i = Q(s, a_-i): agent i observation-only, its alive teammates with their actions;
         ``obs [..., P, ...]``, ``actions int32[..., P]`` -> ``float32[..., P]``, or ``float32[...]``
         for the one agent ``agent int32[...]``."""
         enc = self.encoder(obs)
+        return self._baseline(obs, enc, nn.swish(self.obs_emb(enc)), actions, agent)
+
+    def _baseline(self, obs, enc, e_o, actions, agent):
         p = enc.shape[-2]
-        e_o = nn.swish(self.obs_emb(enc))
         one_hot = jax.nn.one_hot(actions, obs.action_mask.shape[-1], dtype=enc.dtype)
         e_oa = nn.swish(self.obs_act_emb(jnp.concatenate([enc, one_hot], axis=-1)))
         if agent is not None:
@@ -201,6 +203,9 @@ class ReferenceCritic(nn.Module):
         mask = obs.alive[..., None, :] | eye
         return self._head(self.rsa(tokens, mask), mask, self.head)
 
-    def __call__(self, obs, actions: jax.Array):
-        """``(value [...], baseline [..., P])``."""
-        return self.value(obs), self.baseline(obs, actions)
+    def __call__(self, obs, actions: jax.Array, agent: jax.Array | None = None):
+        """``(value [...], baseline [..., P] or [...] with agent)``, the agents' encoding computed once."""
+        enc = self.encoder(obs)
+        e_o = nn.swish(self.obs_emb(enc))
+        value = self._head(self.rsa(e_o, obs.alive), obs.alive, self.head)
+        return value, self._baseline(obs, enc, e_o, actions, agent)

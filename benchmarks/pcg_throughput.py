@@ -13,7 +13,11 @@ generator's measurements plays side by side, in the same process, call after cal
 generator's (medians of ``--repeats``): the reference content at range
 13 (``playtest_games_per_s``, ``ratio_to_playtest``), and one content per episode with a skill drawn
 uniformly from the generator's box (``box_playtest_games_per_s``, ``ratio_to_box_playtest``), the
-kind of games generation plays (longer: both report their mean decisions per game).
+kind of games generation plays (longer: both report their mean decisions per game). With
+``--generation`` a third: the skills the generation's first call kept, one content per episode,
+as many games each as a measurement plays (``generated_playtest_games_per_s``,
+``ratio_to_generated_playtest``): a playtest of the very contents generation measures, so the ratio
+is the generator's own cost, not the length of its games.
 """
 
 from __future__ import annotations
@@ -80,7 +84,8 @@ def generation(episodes: int, decisions: int, n_games: int):
     row = {"benchmark": "pcg_generation", "machine": machine(load=True), "methods": list(out),
            "episodes_per_target_and_method": episodes, "episodes": n_episodes, "decisions": decisions,
            "n_games": n_games, "games_per_measurement": n_episodes * n_games, "first_call_s": round(first, 2)}
-    return row, call, n_episodes * decisions * n_games
+    kept = jax.numpy.concatenate([jax.numpy.asarray(g["skill"]) for g in out.values()])
+    return row, call, n_episodes * decisions * n_games, kept
 
 
 def training(preset: str, updates: int):
@@ -115,12 +120,13 @@ def training(preset: str, updates: int):
     return row, call, games
 
 
-def playtest_beside(games: int, groups: int | None = None):
+def playtest_beside(games: int, groups: int | None = None, skills=None):
     """``(call, mean decisions per game)`` of a PT-HR playtest of ``games`` games (raidjax's one
     protocol: chained arenas after a warm-up): ``call()`` plays it once (compiled here). ``groups=None``:
     the reference content at range 13; else ``groups`` contents of ``games // groups`` games each
     (``raidjax.playtest_groups``), each with a skill drawn uniformly from the generator's box, as
-    generator episodes play: the same kind of games, which are longer than the reference's."""
+    generator episodes play: the same kind of games, which are longer than the reference's; or, given
+    ``skills`` (``[groups, 4]``, the generator's parameters), those skills."""
     import numpy as np
 
     import raidjax
@@ -130,7 +136,8 @@ def playtest_beside(games: int, groups: int | None = None):
         play = lambda k: raidjax.playtest(k, params, raidjax.policies.heuristic, games)  # noqa: E731
     else:
         lo, hi = np.asarray(pcg.env.low()), np.asarray(pcg.env.high())
-        skills = lo + np.random.default_rng(0).random((groups, lo.size)) * (hi - lo)
+        if skills is None:
+            skills = lo + np.random.default_rng(0).random((groups, lo.size)) * (hi - lo)
         contents = jax.vmap(lambda s: pcg.env.skill_params(pcg.env.base_game(), s))(jax.numpy.asarray(skills))
         n = games // groups
         play = jax.jit(lambda k: raidjax.playtest_groups(jax.random.split(k, groups), contents,
@@ -146,14 +153,18 @@ def _seconds(call) -> float:
     return time.perf_counter() - t0
 
 
-def _timed(row: dict, call, games: int, repeats: int, beside: int | None = None, groups: int | None = None) -> dict:
+def _timed(row: dict, call, games: int, repeats: int, beside: int | None = None, groups: int | None = None,
+           kept=None) -> dict:
     """``row`` with ``call``'s games/s (``games`` per call): the median of ``repeats`` timed calls.
-    With ``beside`` (a game count) the two playtests of ``playtest_beside`` (the reference content,
-    and ``groups`` box-drawn contents) are timed between them, call after call, so the three share
-    this CPU's slow and fast phases alike; each rate is its median and the ratios are of medians."""
+    With ``beside`` (a game count) the playtests of ``playtest_beside`` (the reference content,
+    ``groups`` box-drawn contents and, given, the ``kept`` skills) are timed between them, call after
+    call, so all share this CPU's slow and fast phases alike; each rate is its median and the ratios
+    are of medians."""
     others = {}
     if beside:
         others = {"playtest": playtest_beside(beside), "box_playtest": playtest_beside(beside, groups)}
+        if kept is not None:
+            others["generated_playtest"] = playtest_beside(beside, len(kept), kept)
     times = {"": [], **{k: [] for k in others}}
     for _ in range(repeats):
         times[""].append(_seconds(call))
@@ -195,10 +206,10 @@ def main() -> None:
     elif args.train:
         row = training(args.train, args.steps)
     if row is not None:
-        row, call, games = row
+        row, call, games, *kept = row
         groups = row.get("episodes", row.get("episodes_side_by_side"))
         beside = row["games_per_measurement"] if args.beside_playtest else None
-        print(json.dumps(_timed(row, call, games, args.repeats, beside, groups)))
+        print(json.dumps(_timed(row, call, games, args.repeats, beside, groups, *kept)))
         return
 
     params = pcg.make_pcg_params(n_games=args.n_games)

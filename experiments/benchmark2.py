@@ -13,8 +13,10 @@ last finished one, and ``train`` also resumes mid-training from its latest orbax
    40-decision episodes, every decision measured with ``eval_games`` (300) PT-HR games, greedy PPO,
    each episode's last measured skill kept with that measurement. ``raidjax``: episodes end at the
    band, ``gen_games`` per measurement, sampled PPO, the final skill re-measured with
-   ``eval_games`` games. The episodes are generated in ``parts`` (each saved, so an interruption
-   loses at most one part); the result is ``generated.npz`` and ``csv/generated.csv``.
+   ``eval_games`` games. The episodes are generated in ``parts``, every method and target side by
+   side in each; a finished part is saved (``gen_parts/``), so an interruption loses at most the part
+   under way and a resumed run neither repeats nor loses a finished skill; the result is
+   ``generated.npz`` and ``csv/generated.csv``.
 3. ``report``: controllability / diversity / yield tables beside the paper's numbers, the t-SNE,
    controllability and error-vs-diversity figures (``experiments.b2_report``); under ``paper``
    every (method, target) group is cut to 300 (or the smallest group) before the metrics, with a
@@ -25,7 +27,9 @@ generation environment pools the games of an unchanged skill, for all three gene
 ``--edit-cost``, ``--goal-cost`` with ``--goal-axis`` (a style goal), ``--ent-coef`` and
 ``--total-steps`` (PPO learner), ``--seeds``, ``--episodes``.
 
-The last stdout line is the JSON summary (also ``summary.json``).
+``stages/records.json`` holds each finished stage's and part's start, end, seconds, commit and
+machine. The last stdout line is the JSON summary (also ``summary.json``), with ``compute_seconds``
+(the finished work's time, resumes summed) and ``span_seconds`` (first start to last end).
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg
-from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli, whole_number_arg
+from raidjax.io import HelpFormatter, atomic_write, fmt_seconds, run_cli, utc_now, whole_number_arg
 from raidjax.pcg import quality as pm
 from trainers import checkpoint, loop
 from trainers.config import PPOConfig, load_config
@@ -313,10 +317,11 @@ def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "pap
     for i in range(scale.parts):
         path = run.path("gen_parts", f"part_{i:03d}.npz")
         if not path.exists():
-            t = time.perf_counter()
+            t, start = time.perf_counter(), utc_now()
             key = jax.random.fold_in(jax.random.key(seed + 1), i)
             gens = generate_episodes(key, generators, **kwargs)
             save_generated(path, gens)
+            run.record(part_record(i), start, time.perf_counter() - t)
             done_here += 1
             eta = (time.perf_counter() - t0) / done_here * (scale.parts - i - 1)
             run.log(f"generate: part {i + 1}/{scale.parts} ({per_part} episodes per target and method, "
@@ -330,6 +335,30 @@ def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "pap
     run.log("generate: mean |W_t - W_c| (all episodes) " + ", ".join(f"{m} {e:.3f}" for m, e in errs.items()))
     return {"episodes": {m: int(len(g["target"])) for m, g in gens.items()}, "parts": scale.parts,
             "seconds": time.perf_counter() - t0}
+
+
+def part_record(i: int) -> str:
+    """The ``RunFolder.record`` name of generation part ``i``."""
+    return f"generate/part_{i:03d}"
+
+
+def compute_time(run: RunFolder, tr: dict, tr_paper: dict | None) -> dict:
+    """What the run's finished work cost: ``compute_seconds`` (both PPOs' training, cumulative over
+    resumes with compiles excluded, every generation part and the report; work lost to an
+    interruption is not counted), ``span_seconds`` (the wall-clock from the run's first start to
+    the last piece's end, pauses between sessions included), ``first_start``, ``last_end`` and the
+    ``commits`` the pieces ran at."""
+    import datetime
+
+    recs = run.records()
+    parts = [r["seconds"] for n, r in recs.items() if n.startswith("generate/part_")]
+    compute = tr["train_seconds"] + (tr_paper["train_seconds"] if tr_paper else 0.0) + sum(parts) + \
+        recs.get("report", {}).get("seconds", 0.0)
+    when = lambda s: datetime.datetime.fromisoformat(s)
+    first, last = min(r["start"] for r in recs.values()), max(r["end"] for r in recs.values())
+    return {"compute_seconds": compute, "span_seconds": (when(last) - when(first)).total_seconds(),
+            "first_start": first, "last_end": last,
+            "commits": sorted({r["machine"]["commit"] for r in recs.values()})}
 
 
 def scale_of(a) -> Scale:
@@ -368,6 +397,8 @@ def main(argv=None) -> dict:
     run = RunFolder(a.out, config, resume=a.resume, ignore=("bootstrap",))  # report-only: may change
     if run.finished:
         return run.already_finished()
+    if "started" not in run.records():  # the run's first start: where its wall-clock span begins
+        run.record("started", utc_now(), 0.0)
     train_games, gen_games = planned_games(scale, pr)
     run.log(f"plan: scale {a.scale}, at most {train_games:,} PT-HR games in training and {gen_games:,} in "
             f"generation; a whole {a.scale} run took {MEASURED_WALL.get(a.scale, 'not yet measured')} "
@@ -388,7 +419,7 @@ def main(argv=None) -> dict:
                **({"paper_ppo_train_steps": tr_paper["steps"], "paper_ppo_train_groups": tr_paper["groups"],
                    "paper_ppo_train_seconds": tr_paper["seconds"]} if tr_paper else {}),
                "wall_seconds": sum(run.stage_seconds().values())}
-    return run.finish(summary)
+    return run.finish({**summary, **compute_time(run, tr, tr_paper)})
 
 
 def cli(argv=None) -> None:

@@ -37,6 +37,11 @@ def source_commit() -> str | None:
 SOURCE_COMMIT = source_commit()
 
 
+def utc_now() -> str:
+    """The current time, UTC, ISO 8601 to the second (``machine``'s ``date``)."""
+    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+
+
 def machine(load: bool = False) -> dict:
     """A JSON-able description of the run, so a stored result says what produced it: ``date`` (UTC,
     ISO 8601), ``commit`` (``SOURCE_COMMIT``, read at import), the JAX devices (``platform``, ``device``,
@@ -44,7 +49,7 @@ def machine(load: bool = False) -> dict:
     ``jax`` version, and with ``load`` the 1-minute load average (``load_average_1m``; timings on a
     shared machine depend on it)."""
     dev = jax.devices()[0]
-    out = {"date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+    out = {"date": utc_now(),
            "commit": SOURCE_COMMIT,
            "platform": dev.platform, "device": str(dev.device_kind), "device_count": jax.device_count(),
            "cpu_count": os.cpu_count(),

@@ -10,7 +10,9 @@ FAULT is ``none`` or ``WHEN=N`` (the N-th time, counted from 1, in this invocati
   before the rename that commits it;
 - ``after_save``: right after a checkpoint save returns;
 - ``mid_metrics``: in the middle of a metrics row (half of the JSON line written, then killed);
-- ``mid_file``: in the middle of an ``atomic_write`` (half of the temporary file written).
+- ``mid_file``: in the middle of an ``atomic_write`` (half of the temporary file written);
+  ``mid_file@TEXT`` counts only the writes whose path contains ``TEXT`` (``mid_file@part_001=1``:
+  while Benchmark 2 saves its second generation part).
 """
 
 from __future__ import annotations
@@ -47,7 +49,8 @@ def install(fault: str) -> None:
     """Patch the moment named by ``fault`` (before the command's modules are imported)."""
     if fault == "none":
         return
-    when, n = fault.split("=")
+    when, n = fault.rsplit("=", 1)
+    when, _, only = when.partition("@")
     hit = _countdown(int(n))
     if when in ("before_save", "after_save"):
         from trainers import checkpoint
@@ -97,7 +100,7 @@ def install(fault: str) -> None:
         real_atomic = raidjax_io.atomic_write
 
         def atomic_write(path, data):
-            if hit():
+            if only in str(path) and hit():
                 name = os.path.basename(path)  # the temporary name atomic_write itself would use
                 fd, _ = tempfile.mkstemp(dir=os.path.dirname(os.path.abspath(path)), prefix=f".{name}.", suffix=".tmp")
                 os.write(fd, (data.encode() if isinstance(data, str) else data)[: len(data) // 2])

@@ -1,19 +1,41 @@
 """``experiments.benchmark2`` at the smoke scale: files, numbers recomputed from the raw
-generated skills, resume (whole stages and the PPO checkpoint) and the scale guard."""
+generated skills, resume (whole stages, the PPO checkpoint, and the command killed during training,
+generation and the report) and the scale guard."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import json
 import math
+import shutil
 import time
 
+import jax
 import numpy as np
 import pytest
+from fault_inject import run, steps
 from PIL import Image
 
 from experiments import benchmark2 as b2
 from raidjax.pcg import quality as pm
+from trainers import checkpoint
+
+# Two generation parts of the smoke scale's 2 episodes per target and method.
+SMOKE = ["--scale", "smoke", "--seed", "3", "--episodes", "4"]
+E = 4
+
+
+@pytest.fixture(scope="module")
+def smoke_run(tmp_path_factory):
+    """One uninterrupted smoke run, shared by the tests below: ``(folder, summary, last stdout line)``
+    (a test that changes the folder works on a copy)."""
+    out = tmp_path_factory.mktemp("b2") / "uninterrupted"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        summary = b2.main([*SMOKE, "--out", str(out)])
+    return out, summary, buf.getvalue().strip().splitlines()[-1]
 
 
 def _csv(path):
@@ -35,17 +57,17 @@ def test_paper_scale_is_wired_to_the_paper_budgets():
         assert sc.episodes % sc.parts == 0 and (sc.episodes // sc.parts) % sc.seeds == 0
 
 
-def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
+def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, smoke_run):
     out = tmp_path / "b2"
-    summary = b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3"])
-    last = capsys.readouterr().out.strip().splitlines()[-1]
+    shutil.copytree(smoke_run[0], out)
+    summary, last = smoke_run[1:]
     assert json.loads(last)["mean_error"] == summary["mean_error"]
 
     for f in ["config.json", "log.txt", "summary.json", "generated.npz", "tables/controllability.md",
               "tables/diversity.md", "tables/yield.md", "tables/summary.md", "csv/controllability.csv",
               "csv/diversity.csv", "csv/yield.csv", "csv/generated.csv", "train/metrics.csv",
               "train/metrics_paper.csv", "stages/train.json", "stages/train_paper_ppo.json",
-              "stages/generate.json", "stages/report.json"]:
+              "stages/generate.json", "stages/report.json", "stages/records.json"]:
         assert (out / f).is_file(), f
     assert json.loads((out / "config.json").read_text())["scale"] == "smoke"
     methods = b2.methods_of(b2.SCALES["smoke"])  # both PPOs (the paper's and raidjax's), then the baselines
@@ -69,7 +91,6 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
 
     # Raw generations: E episodes per target and method, one CSV row each.
     gens = b2.load_generated(out / "generated.npz")
-    E = b2.SCALES["smoke"].episodes
     assert list(gens) == list(methods)
     for g in gens.values():
         assert g["skill"].shape == (E * len(pm.TARGETS), 4)
@@ -111,54 +132,86 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, capsys):
     # The finished run resumed: a no-op that says so, fast.
     n_log = len((out / "log.txt").read_text().splitlines())
     t = time.perf_counter()
-    again = b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3", "--resume"])
+    again = b2.main([*SMOKE, "--out", str(out), "--resume"])
     assert time.perf_counter() - t < 20
     new_log = (out / "log.txt").read_text().splitlines()[n_log:]
     assert any("already finished: nothing to do" in line for line in new_log)
     assert again["mean_error"] == summary["mean_error"]
 
-    # An interruption mid-training (the last checkpoint and the stage record lost): training resumes
-    # from the previous checkpoint, redoes only the last update, bit-identically.
-    import shutil
-
-    import jax
-
-    ckpt = out / "checkpoints" / "ppo"
-    learner = b2._Learner(b2.RunFolder(out, json.loads((out / "config.json").read_text()), resume=True),
-                          b2.SCALES["smoke"], 3)
-    final, _ = learner.restore()
-    shutil.rmtree(ckpt / str(cfg.num_updates))
-    for name in ("stages/train.json", "summary.json"):
-        (out / name).unlink()
-    b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3", "--resume"])
-    log = (out / "log.txt").read_text()
-    assert f"resumed from the checkpoint at update {cfg.num_updates - 1}/{cfg.num_updates}" in log
-    assert [int(r["update"]) for r in _csv(out / "train" / "metrics.csv")] == list(range(1, cfg.num_updates + 1))
-    again, _ = learner.restore()
-    for x, y in zip(jax.tree.leaves(final), jax.tree.leaves(again), strict=True):
-        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
-
     # Other settings into the same folder: a clear error.
     with pytest.raises(ValueError, match="other settings"):
         b2.main(["--scale", "cpu", "--out", str(out), "--resume"])
     with pytest.raises(ValueError, match="seed: saved 3, now 4"):
-        b2.main(["--scale", "smoke", "--out", str(out), "--seed", "4", "--resume"])
+        b2.main(["--scale", "smoke", "--out", str(out), "--seed", "4", "--episodes", "4", "--resume"])
     with pytest.raises(ValueError, match="already holds a run: pass --resume"):
-        b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3"])
+        b2.main([*SMOKE, "--out", str(out)])
     # every variant is recorded in config.json
-    for variant in (["--pool-repeats"], ["--ent-coef", "0.01"], ["--episodes", "4"],
+    for variant in (["--pool-repeats"], ["--ent-coef", "0.01"], ["--episodes", "6"],
                     ["--edit-cost", "2", "--goal-cost", "1", "--goal-axis", "1,1,1,1"]):
         with pytest.raises(ValueError, match="other settings"):
-            b2.main(["--scale", "smoke", "--out", str(out), "--seed", "3", "--resume", *variant])
+            b2.main([*SMOKE, "--out", str(out), "--resume", *variant])
     np.testing.assert_array_equal(b2.load_generated(out / "generated.npz")["PPO"]["win_rate"],
                                   gens["PPO"]["win_rate"])
 
     # Weights-only restore (what generation uses) equals the full restore's weights.
-    from trainers import checkpoint
-
-    weights, _ = checkpoint.load_policy_weights(ckpt)
-    for x, y in zip(jax.tree.leaves(again["params"]), jax.tree.leaves(weights), strict=True):
+    learner = b2._Learner(b2.RunFolder(out, json.loads((out / "config.json").read_text()), resume=True),
+                          b2.scale_of(b2._parse([*SMOKE, "--out", str(out)])), 3)
+    final, _ = learner.restore()
+    weights, _ = checkpoint.load_policy_weights(out / "checkpoints" / "ppo")
+    for x, y in zip(jax.tree.leaves(final["params"]), jax.tree.leaves(weights), strict=True):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+
+
+SUMMARY_FIELDS = ("mean_error", "pc1_sd", "pc1_own_sd", "yield", "edits", "n_controllability", "ci95", "episodes",
+                  "train_steps", "paper_ppo_train_steps")
+
+
+def test_killed_in_training_generation_and_report_it_resumes_to_the_same_tables(tmp_path, smoke_run):
+    # kill -9 (fault_inject.py) during PPO training, while a generation part is saved and during the
+    # report: --resume generates every part once, loses none, and ends where the uninterrupted run did.
+    ref, out = smoke_run[0], tmp_path / "faulty"
+
+    def faulty(fault: str, killed: bool = True, resume: bool = True):
+        return run(fault, "experiments.benchmark2", [*SMOKE, "--out", str(out)] + ["--resume"] * resume, killed)
+
+    faulty("after_save=1", resume=False)  # raidjax's PPO: update 1 of 2 checkpointed, then killed
+    assert steps(out / "checkpoints" / "ppo") == [1] and not (out / "stages" / "train.json").exists()
+    faulty("mid_file@part_001.npz=1")  # training finished from update 1; part 0 saved; killed saving part 1
+    assert (out / "gen_parts" / "part_000.npz").is_file() and not (out / "gen_parts" / "part_001.npz").exists()
+    assert "resumed from the checkpoint at update 1/2" in (out / "log.txt").read_text()
+    faulty("mid_file@controllability.md=1")  # part 0 loaded, part 1 generated; killed writing the first table
+    assert (out / "stages" / "generate.json").is_file() and not (out / "summary.json").exists()
+    p = faulty("none", killed=False)
+    assert "removed an unfinished temporary file" in p.stdout
+
+    # Every part generated once: a killed part had not finished, and was generated again, whole.
+    log = (out / "log.txt").read_text()
+    assert log.count("generate: part 1/2 ") == 1 and log.count("generate: part 2/2 ") == 1
+    records = json.loads((out / "stages" / "records.json").read_text())
+    assert {"started", "train", "train_paper_ppo", "generate/part_000", "generate/part_001", "generate",
+            "report"} <= set(records)
+    assert all(r["start"] <= r["end"] and r["machine"]["commit"] for r in records.values())
+
+    # The uninterrupted run's networks, tables, CSVs and skills, bit for bit.
+    for name in ("ppo", "ppo_paper"):
+        wa, _ = checkpoint.load_policy_weights(out / "checkpoints" / name)
+        wb, _ = checkpoint.load_policy_weights(ref / "checkpoints" / name)
+        for x, y in zip(jax.tree.leaves(wa), jax.tree.leaves(wb), strict=True):
+            np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    for sub in ("tables", "csv"):
+        files = sorted(p.name for p in (ref / sub).iterdir())
+        assert files == sorted(p.name for p in (out / sub).iterdir()) and files
+        for name in files:
+            assert (out / sub / name).read_bytes() == (ref / sub / name).read_bytes(), f"{sub}/{name}"
+    gens, gens_ref = b2.load_generated(out / "generated.npz"), b2.load_generated(ref / "generated.npz")
+    assert list(gens) == list(gens_ref)
+    for m in gens:
+        for k in b2.FIELDS:
+            np.testing.assert_array_equal(gens[m][k], gens_ref[m][k], err_msg=f"{m}/{k}")
+    summary, summary_ref = (json.loads((d / "summary.json").read_text()) for d in (out, ref))
+    assert {k: summary[k] for k in SUMMARY_FIELDS} == {k: summary_ref[k] for k in SUMMARY_FIELDS}
+    assert summary["compute_seconds"] > 0 and summary["span_seconds"] >= 0
+    assert not list(out.rglob(".*.tmp"))
 
 
 def _check_scatter(crow, drow):

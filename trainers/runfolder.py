@@ -15,7 +15,8 @@ Layout of ``DIR`` (the pipelines use all of it, the trainers the first lines)::
     config.json     every setting of the run (a rerun must match it)
     log.txt         timestamped progress lines (also printed)
     stages/*.json   one file per finished stage: its JSON result; a rerun skips finished stages
-                    (stages/seconds.json: each finished stage's wall seconds)
+                    (stages/seconds.json: each finished stage's wall seconds; stages/records.json:
+                    each finished stage's or part's start, end, seconds, commit and machine)
     csv/*.csv       every number the run measured
     tables/*.md     the tables, our numbers beside the paper's
     figures/*.png   the figures
@@ -37,7 +38,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from raidjax.io import atomic_write, finite_json, fmt_seconds, machine
+from raidjax.io import atomic_write, finite_json, fmt_seconds, machine, utc_now
 from trainers.config import upgrade_settings
 
 
@@ -168,7 +169,7 @@ class RunFolder:
         if p.exists():
             self.log(f"stage {name}: already done, skipped")
             return json.loads(p.read_text())
-        t = time.perf_counter()
+        t, start = time.perf_counter(), utc_now()
         self.log(f"stage {name}: start")
         result = fn()
         seconds = time.perf_counter() - t
@@ -176,8 +177,24 @@ class RunFolder:
         timings = self.stage_seconds()
         timings[name] = seconds
         atomic_write(self.out / "stages" / "seconds.json", json.dumps(timings, indent=1))
+        self.record(name, start, seconds)
         self.log(f"stage {name}: done in {fmt_seconds(seconds)}")
         return json.loads(finite_json(result))
+
+    def record(self, name: str, start: str, seconds: float) -> None:
+        """Add a finished piece of work (a stage, a part of one) to ``stages/records.json``: its
+        ``start`` and ``end`` (UTC, ISO 8601; the end is now), wall ``seconds`` and the ``machine``
+        (``raidjax.io.machine``: the commit, devices and host) of the invocation that did it. A run
+        resumed on another machine or commit says so piece by piece."""
+        records = self.records()
+        stamp = machine()
+        records[name] = {"start": start, "end": stamp.pop("date"), "seconds": seconds, "machine": stamp}
+        atomic_write(self.path("stages", "records.json"), json.dumps(records, indent=1))
+
+    def records(self) -> dict:
+        """``record``'s entries by name, in the order they finished."""
+        p = self.out / "stages" / "records.json"
+        return json.loads(p.read_text()) if p.exists() else {}
 
     def stage_seconds(self) -> dict:
         """Wall seconds of every finished stage (of the invocation that finished it)."""

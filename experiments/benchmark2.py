@@ -112,7 +112,7 @@ SCALES = {
                    paper_ppo=dict(n_arenas=2, n_steps=2, total_steps=4, update_epochs=1, n_minibatches=2, hidden=16,
                                   layers=2, n_games=4, max_edits=6),
                    fast_compile=True, bootstrap=50),
-    # Meant for one run of at most 3 h on a 2-core CPU, the paper protocol unchanged (40-decision
+    # One resumable run on a 2-core CPU (it may span sessions), the paper protocol unchanged (40-decision
     # episodes, 300-game measurements, greedy PPO, the last measured skill): PPO both ways side by
     # side, the paper's (one model per fixed target, 20 000 steps, N = 100 games per measurement,
     # one seed) and raidjax's (the cpu preset: one model for all targets, target observed, N = 50,
@@ -122,7 +122,8 @@ SCALES = {
     # "Benchmark 2's games beside a playtest") it takes about 3 h 40 min: the paper's PPO trains on
     # 7 x 20 000 x 100 = 14 M games (about 2 h 5 min at 1 870 games/s), generation plays
     # 4 x 7 x 30 x 40 x 300 = 10.1 M (about 1 h 30 min), ours 0.5 M (about 4 min).
-    # Part i's key does not depend on the number of parts, so --episodes 40 extends a 30-episode run.
+    # Part i's key does not depend on the number of parts: a run with --episodes 40 plays a
+    # 30-episode run's parts first.
     "cpu": Scale(preset="cpu", ppo=dict(total_steps=10240), seeds=1, chunk=5, episodes=30, parts=3,
                  gen_games=100, eval_games=300, paper_ppo={}),
     # The paper's budgets: one model per fixed (unobserved) target, 5 seeds, 20 000 steps, N = 100
@@ -172,8 +173,9 @@ def _parse(argv=None) -> argparse.Namespace:
                     help="PPO generator steps per group (default: the scale's)")
     ap.add_argument("--seeds", type=whole_number_arg(1), help="PPO seeds trained together (default: the scale's)")
     ap.add_argument("--episodes", type=whole_number_arg(1),
-                    help="generation episodes per target and method, in parts of the scale's size (cpu: 1 "
-                    "episode per part), so a larger count extends a finished run (default: the scale's)")
+                    help="generation episodes per target and method, in parts of the scale's size (cpu: "
+                    f"{SCALES['cpu'].episodes // SCALES['cpu'].parts} episodes per part; part i is the same "
+                    "whatever the count) (default: the scale's)")
     ap.add_argument("--pool-repeats", action="store_true",
                     help="generation env: re-measuring an unchanged skill pools its games (all three "
                     "generators, training and generation)")

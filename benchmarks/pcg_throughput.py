@@ -56,8 +56,9 @@ def generation(episodes: int, decisions: int, n_games: int):
     """Benchmark 2's generation as its ``cpu`` scale runs it (``trainers.generate.generate_episodes``):
     raidjax's PPO, the paper's PPO (7 models; untrained networks: their edits, not their weights,
     set the games) and PCG-HR and PCG-RD, ``episodes`` per target and method side by side, strict
-    episodes of ``decisions`` measurements of ``n_games`` PT-HR games. Returns ``(row, call, games)``:
-    the settings, a function that plays one call (compiled by the first, here) and its games."""
+    episodes of ``decisions`` measurements of ``n_games`` PT-HR games. Returns ``(row, call, games, kept)``:
+    the settings, a function that plays one call (compiled by the first, here), its games and the
+    skills its first call kept (``[episodes, 4]``)."""
     from trainers.config import load_config
     from trainers.generate import PPOGenerator, generate_episodes, target_groups
     from trainers.ppo_pcgrl import make_train
@@ -90,9 +91,9 @@ def generation(episodes: int, decisions: int, n_games: int):
 
 def training(preset: str, updates: int):
     """One PPO-PCGRL learner of Benchmark 2 (``preset``: ``cpu``, one model, or ``paper``, 7 models
-    vmapped, one per target). Returns ``(row, call, games)``: the settings, a function that runs
-    ``updates`` more updates (compiled and warmed up here) and the games of its training
-    measurements (the networks' updates are in its time)."""
+    vmapped, one per target). Returns ``(row, call, games, kept)``: the settings, a function that runs
+    ``updates`` more updates (compiled and warmed up here), the games of its training
+    measurements (the networks' updates are in its time) and ``None`` (no kept skills)."""
     from trainers.config import load_config
     from trainers.generate import target_groups
     from trainers.ppo_pcgrl import make_train
@@ -117,7 +118,7 @@ def training(preset: str, updates: int):
            "episodes_side_by_side": len(labels) * cfg.n_arenas, "n_games": cfg.n_games,
            "games_per_measurement": len(labels) * cfg.n_arenas * cfg.n_games, "updates": updates,
            "compile_s": round(compile_s, 2)}
-    return row, call, games
+    return row, call, games, None
 
 
 def playtest_beside(games: int, groups: int | None = None, skills=None):
@@ -206,10 +207,10 @@ def main() -> None:
     elif args.train:
         row = training(args.train, args.steps)
     if row is not None:
-        row, call, games, *kept = row
+        row, call, games, kept = row
         groups = row.get("episodes", row.get("episodes_side_by_side"))
         beside = row["games_per_measurement"] if args.beside_playtest else None
-        print(json.dumps(_timed(row, call, games, args.repeats, beside, groups, *kept)))
+        print(json.dumps(_timed(row, call, games, args.repeats, beside, groups, kept)))
         return
 
     params = pcg.make_pcg_params(n_games=args.n_games)

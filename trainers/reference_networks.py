@@ -180,7 +180,9 @@ class ReferenceCritic(nn.Module):
     def value(self, obs, agents: jax.Array | None = None) -> jax.Array:
         """V(s) over ``agents: bool[..., P]`` (default ``obs.alive``): ``obs [..., P, ...]`` -> ``float32[...]``."""
         agents = obs.alive if agents is None else agents
-        e_o = nn.swish(self.obs_emb(self.encoder(obs)))
+        return self._value(nn.swish(self.obs_emb(self.encoder(obs))), agents)
+
+    def _value(self, e_o, agents):
         return self._head(self.rsa(e_o, agents), agents, self.head)
 
     def baseline(self, obs, actions: jax.Array, agent: jax.Array | None = None) -> jax.Array:
@@ -207,5 +209,4 @@ class ReferenceCritic(nn.Module):
         """``(value [...], baseline [..., P] or [...] with agent)``, the agents' encoding computed once."""
         enc = self.encoder(obs)
         e_o = nn.swish(self.obs_emb(enc))
-        value = self._head(self.rsa(e_o, obs.alive), obs.alive, self.head)
-        return value, self._baseline(obs, enc, e_o, actions, agent)
+        return self._value(e_o, obs.alive), self._baseline(obs, enc, e_o, actions, agent)

@@ -15,8 +15,8 @@ Layout of ``DIR`` (the pipelines use all of it, the trainers the first lines)::
     config.json     every setting of the run (a rerun must match it)
     log.txt         timestamped progress lines (also printed)
     stages/*.json   one file per finished stage: its JSON result; a rerun skips finished stages
-                    (stages/seconds.json: each finished stage's wall seconds; stages/records.json:
-                    each finished stage's or part's start, end, seconds, commit and machine)
+                    (stages/records.json: each finished stage's or part's start, end, wall seconds,
+                    commit and machine)
     csv/*.csv       every number the run measured
     tables/*.md     the tables, our numbers beside the paper's
     figures/*.png   the figures
@@ -174,9 +174,6 @@ class RunFolder:
         result = fn()
         seconds = time.perf_counter() - t
         atomic_write(self.path("stages", f"{name}.json"), finite_json(result, indent=1))
-        timings = self.stage_seconds()
-        timings[name] = seconds
-        atomic_write(self.out / "stages" / "seconds.json", json.dumps(timings, indent=1))
         self.record(name, start, seconds)
         self.log(f"stage {name}: done in {fmt_seconds(seconds)}")
         return json.loads(finite_json(result))
@@ -197,9 +194,11 @@ class RunFolder:
         return json.loads(p.read_text()) if p.exists() else {}
 
     def stage_seconds(self) -> dict:
-        """Wall seconds of every finished stage (of the invocation that finished it)."""
+        """Wall seconds of every finished stage (of the invocation that finished it): ``records``'
+        stages, with ``stages/seconds.json`` for a run folder saved before the records existed."""
         p = self.out / "stages" / "seconds.json"
-        return json.loads(p.read_text()) if p.exists() else {}
+        saved = json.loads(p.read_text()) if p.exists() else {}
+        return {**saved, **{n: r["seconds"] for n, r in self.records().items() if self.done(n)}}
 
     def write_csv(self, name: str, rows: Sequence[dict]) -> Path:
         """Write ``rows`` (dicts with the same keys) to ``csv/<name>.csv``."""

@@ -59,10 +59,10 @@ def main() -> None:
     actions = jnp.full((args.arenas, state.pos.shape[1] - 1), raidjax.ACTION_HEURISTIC, jnp.int32)
     n_ticks = TICKS_PER_DECISION // args.substeps
 
-    def lane_substep(seeds, state, actions, params, sources):  # one sub-step as ``env.advance`` runs it
+    def lane_substep(seeds, state, actions, params, sources, fast):  # one sub-step as ``env.advance`` runs it
         first = seeds.reshape(-1)[0]
-        with lanes.gate(first != first + 1):
-            return substep(seeds, state, actions, params, sources, n_ticks)
+        schedule = lanes.Schedule(first != first + 1) if fast else lanes.PLAIN
+        return substep(seeds, state, actions, params, sources, n_ticks, schedule=schedule)
 
     program = lanes.batched(lane_substep, full=(1,))
 

@@ -22,6 +22,7 @@ from raidjax.types import (
     TARGET_UNIT,
     TICK,
     TRIGGER_PASSIVE,
+    Hits,
     Params,
     Projectiles,
     Spawns,
@@ -196,8 +197,8 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
         fired_tick: ``int32[U, S, ...]`` from ``advance_casts`` (tick of the sub-step a cast completed, or 0).
         n_ticks: ticks in this sub-step.
 
-    Returns ``(state, instant_hits, instant_from: float32[U*S, 2, ...], spawns)`` where ``instant_hits =
-    (hit: bool[U*S, ...], unit: int32[U*S, ...])`` (an instant skill hits its target) and ``spawns``
+    Returns ``(state, instant_hits, instant_from: float32[U*S, 2, ...], spawns)`` where ``instant_hits``
+    is ``Hits(hit: bool[U*S, ...], unit: int32[U*S, ...])`` (an instant skill hits its target) and ``spawns``
     (``Spawns``) holds the projectiles and areas requested, their slots not yet taken
     (``slot_match`` and ``take_slots`` assign them, ``spawn`` writes them).
     The boss re-picks its target (nearest alive player) as its skills fire; straight missiles keep
@@ -234,7 +235,7 @@ def fire(state: State, params: Params, fired_tick: jnp.ndarray, n_ticks: int):
                     target=per_request(target), tick=per_request(fired_tick), life=per_request(life), facing=facing)
     inst = (fired & instant).reshape((r,) + lanes)
     inst_target = target.reshape((r,) + lanes)
-    instant_hits = (inst & pick(state.alive, inst_target), inst_target)
+    instant_hits = Hits(inst & pick(state.alive, inst_target), inst_target)
     return state, instant_hits, caster.reshape((r, 2) + lanes), spawns
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from raidjax.combat import EPS, TIME_EPS
 from raidjax.lanes import lane_function, one_hot, pick, total
 from raidjax.movement import norm
-from raidjax.types import HIT_ATTACK, Effects, Params, State
+from raidjax.types import HIT_ATTACK, Effects, Hits, Params, State, UnitColumns
 from raidjax.utils import hash_dice
 
 BACK_ATTACK_COS = 0.5  # within +-60 degrees of the rear direction
@@ -102,9 +102,9 @@ def touchable(effects: Effects, params: Params, alive: jnp.ndarray) -> jnp.ndarr
 
 
 @lane_function
-def unit_columns(state: State, params: Params, facing: jnp.ndarray | None = None) -> dict[str, jnp.ndarray]:
-    """Per-unit columns ``float32[U, ...]`` a hit reads from the unit it touches (position, rear
-    direction, evasion, agility, parry, armour factor, team): read by every hit event of a sub-step.
+def unit_columns(state: State, params: Params, facing: jnp.ndarray | None = None) -> UnitColumns:
+    """``UnitColumns``: what a hit reads from the unit it touches (position, heading, evasion, agility,
+    parry, armour factor, team), read by every hit event of a sub-step.
 
     ``facing``: ``fire``'s ``float32[U, 2, ...]`` (cos and sin of the headings before the boss turned
     to fire), if at hand: only the boss's are then computed again, the players' being the same.
@@ -116,12 +116,12 @@ def unit_columns(state: State, params: Params, facing: jnp.ndarray | None = None
         boss = state.heading[-1:]
         cos_h = jnp.concatenate([facing[:-1, 0], jnp.cos(boss)])
         sin_h = jnp.concatenate([facing[:-1, 1], jnp.sin(boss)])
-    return {
-        "x": state.pos[:, 0], "y": state.pos[:, 1], "back_x": -cos_h, "back_y": -sin_h,
-        "evasion": st.evasion, "agility": st.agility, "parry": st.parry,
-        "armor": (1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0),
-        "team": params.team.astype(jnp.float32),
-    }
+    return UnitColumns(
+        x=state.pos[:, 0], y=state.pos[:, 1], cos_h=cos_h, sin_h=sin_h,
+        evasion=st.evasion, agility=st.agility, parry=st.parry,
+        armor=(1.0 - st.armor / 200.0) * (1.0 - st.versatility / 200.0),
+        team=params.team.astype(jnp.float32),
+    )
 
 
 class HitSums(NamedTuple):
@@ -177,7 +177,8 @@ class HitOutcomes(NamedTuple):
 
 
 @lane_function(lane_shape="lanes", shared=("first",))
-def hit_outcomes(seeds, unit_cols, f, hits, from_pos, n_events: int, first, u_n: int, lanes: tuple) -> HitOutcomes:
+def hit_outcomes(seeds, unit_cols: UnitColumns, f: Effects, hits: Hits, from_pos, n_events: int, first, u_n: int,
+                 lanes: tuple) -> HitOutcomes:
     """The dice and modifiers of one group of a sub-step's hit events (``group_sums`` adds them up).
 
     A sub-step's ``E`` hit events come in groups (the pool's projectiles, block by block, then every
@@ -186,11 +187,10 @@ def hit_outcomes(seeds, unit_cols, f, hits, from_pos, n_events: int, first, u_n:
 
     Args:
         seeds: ``uint32[2, ...]`` dice seeds (``utils.dice_seeds``) for crits, dodges and parries.
-        unit_cols: ``unit_columns``' dict of ``float32[U, ...]``.
+        unit_cols: ``unit_columns``' ``UnitColumns``.
         f: ``Effects`` of the group's ``n`` events (each event's source, ``event_sources``).
-        hits: the units each event touches: ``bool[n, U, ...]``, or ``(hit: bool[n, ...], unit:
-            int32[n, ...])`` for events that touch at most one unit (only that unit's dice and
-            damage are computed).
+        hits: ``Hits``, the units each event touches (with ``unit``: at most one each, whose dice
+            and damage alone are computed).
         from_pos: ``float32[n, 2, ...]`` where each event comes from (back attacks).
         n_events: ``E``; first: the group's first event (an ``int``, or a traced ``int32[]`` for
             the pool's blocks).
@@ -201,37 +201,36 @@ def hit_outcomes(seeds, unit_cols, f, hits, from_pos, n_events: int, first, u_n:
     """
     xp = np if isinstance(first, int) else jnp
     base = (xp.arange(3)[:, None] * n_events + first + xp.arange(f.base.shape[0])[None]) * u_n  # [3, n]
-    single = isinstance(hits, tuple)
+    single, hit = hits.single, hits.hit
     if single:  # one unit per event: [n, ...]
-        hit, unit = hits
         from_x, from_y = from_pos[:, 0], from_pos[:, 1]
-        index = jnp.asarray(base.reshape(base.shape + (1,) * len(lanes)), jnp.uint32) + unit.astype(jnp.uint32)
-        col = {k: pick(v, unit) for k, v in unit_cols.items()}
+        index = jnp.asarray(base.reshape(base.shape + (1,) * len(lanes)), jnp.uint32) + hits.unit.astype(jnp.uint32)
+        col = jax.tree.map(lambda v: pick(v, hits.unit), unit_cols)
     else:  # every unit: [n, U, ...]
-        hit = hits
         from_x, from_y = from_pos[:, 0, None], from_pos[:, 1, None]
         index = base[:, :, None] + np.arange(u_n)
         # numpy: the same indices in every lane; traced (the pool's blocks): give it the lane axes.
         index = (index.astype(np.uint32) if isinstance(index, np.ndarray)
                  else index.reshape(index.shape + (1,) * len(lanes)).astype(jnp.uint32))
-        col = {k: v[None] for k, v in unit_cols.items()}
+        col = jax.tree.map(lambda v: v[None], unit_cols)
     fc = lambda c: _per_event(f, c, single)  # noqa: E731
     dice = hash_dice(seeds, index)
     crit = dice[0] < fc("crit")
-    relx, rely = from_x - col["x"], from_y - col["y"]
+    relx, rely = from_x - col.x, from_y - col.y
     length = jnp.maximum(jnp.sqrt(relx * relx + rely * rely), EPS)
-    back = (relx / length) * col["back_x"] + (rely / length) * col["back_y"] >= BACK_ATTACK_COS
-    evasion = col["evasion"] + 0.5 * (col["agility"] - fc("agility"))
+    # From behind: the direction it comes from against the unit's rear, (-cos, -sin) of its heading.
+    back = (relx / length) * -col.cos_h + (rely / length) * -col.sin_h >= BACK_ATTACK_COS
+    evasion = col.evasion + 0.5 * (col.agility - fc("agility"))
     dodge = dice[1] * 100.0 < evasion
-    parry = dice[2] * 100.0 < col["parry"]
+    parry = dice[2] * 100.0 < col.parry
     mult = (
         jnp.where(crit, fc("crit_mult"), 1.0)
         * jnp.where(back, fc("back_mult"), 1.0)
         * fc("vers")
-        * col["armor"]
+        * col.armor
         * jnp.where(parry, PARRY_FACTOR, 1.0)
     )
-    enemy = fc("team") != col["team"]
+    enemy = fc("team") != col.team
     # Homing and instant hits land on their target whatever the flags: gate them here.
     harm = hit & enemy & (fc("enemy") > 0) & ~dodge
     healed = hit & ~enemy & (fc("ally") > 0)
@@ -245,18 +244,18 @@ def _per_event(f: Effects, column: str, single: bool) -> jax.Array:
 
 
 @lane_function
-def group_sums(outcomes: HitOutcomes, f: Effects, owner, hits, u_n: int) -> HitSums:
+def group_sums(outcomes: HitOutcomes, f: Effects, owner, hits: Hits, u_n: int) -> HitSums:
     """What one group of hit events adds up to (``hit_outcomes``' ``outcomes``; ``f``, ``owner`` and
     ``hits`` as there; ``u_n``: ``U``). Damage is whole points, so every sum is exact in any order, and the groups'
     sums add up exactly."""
-    single = isinstance(hits, tuple)
+    single = hits.single
     harm, healed, back, mult = outcomes
     fc = lambda c: _per_event(f, c, single)  # noqa: E731
     damage = jnp.where(harm, jnp.floor(fc("base") * mult + 1e-3), 0.0)
     heal = jnp.where(healed, fc("heal"), 0.0)
     back_landed = harm & back & (fc("team") == 0)
     if single:  # spread each event's one target over the unit axis
-        on = one_hot(hits[1], u_n, axis=1)
+        on = one_hot(hits.unit, u_n, axis=1)
         damage_u, heal_u = jnp.where(on, damage[:, None], 0.0), jnp.where(on, heal[:, None], 0.0)
         per_event, to_boss, backs = damage, damage_u[:, -1], back_landed
     else:
@@ -271,8 +270,8 @@ def group_sums(outcomes: HitOutcomes, f: Effects, owner, hits, u_n: int) -> HitS
 def basic_attacks(state: State, params: Params, dt: float):
     """Automatic melee hits on the enemy target within ``attack_range`` every ``1/attack_speed`` s.
 
-    Off when ``attack_power = 0`` (the reference setting). Returns ``(state, (hit: bool[U, ...], unit:
-    int32[U, ...]))``: whether each unit's attack hits its target this sub-step, and the target.
+    Off when ``attack_power = 0`` (the reference setting). Returns ``(state, Hits(hit: bool[U, ...],
+    unit: int32[U, ...]))``: whether each unit's attack hits its target this sub-step, and the target.
     """
     st = params.stats
     t = state.target
@@ -282,7 +281,7 @@ def basic_attacks(state: State, params: Params, dt: float):
     ready = left <= TIME_EPS
     go = state.alive & pick(state.alive, t) & (st.attack_power > 0) & (d <= st.attack_range) & ready
     cooldown = jnp.where(go, 1.0 / st.attack_speed, left)
-    return state.replace(basic_cooldown=cooldown), (go, t)
+    return state.replace(basic_cooldown=cooldown), Hits(go, t)
 
 
 @lane_function

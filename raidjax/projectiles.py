@@ -16,7 +16,7 @@ import jax.numpy as jnp
 from raidjax import collide
 from raidjax.combat import EPS
 from raidjax.lanes import any_, argmin, lane_function, one_hot, pick, total
-from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Effects, Params, State
+from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Effects, Hits, Params, State, UnitColumns
 
 
 class Contacts(NamedTuple):
@@ -32,7 +32,7 @@ class Contacts(NamedTuple):
 
 
 @lane_function
-def contacts(state: State, params: Params, feats: Effects, unit_cols) -> Contacts:
+def contacts(state: State, params: Params, feats: Effects, unit_cols: UnitColumns) -> Contacts:
     """The pool's (``state.projectiles``) ``Contacts`` with the units. ``feats``: the slots' sources'
     ``Effects`` (``n = M``); ``unit_cols``: ``damage.unit_columns(state, params)``.
 
@@ -43,7 +43,7 @@ def contacts(state: State, params: Params, feats: Effects, unit_cols) -> Contact
     px, py = p.pos[:, 0], p.pos[:, 1]
     ux, uy = state.pos[:, 0], state.pos[:, 1]
     dx, dy = p.direction[:, 0], p.direction[:, 1]
-    cos_h, sin_h = -unit_cols["back_x"], -unit_cols["back_y"]  # [U, ...]; negation is exact
+    cos_h, sin_h = unit_cols.cos_h, unit_cols.sin_h  # [U, ...]
     relx, rely = ux[None] - px[:, None], uy[None] - py[:, None]
     dist = jnp.sqrt(relx * relx + rely * rely)
     q0x, q0y = collide.to_body_frame(-relx, -rely, cos_h[None], sin_h[None])
@@ -53,18 +53,19 @@ def contacts(state: State, params: Params, feats: Effects, unit_cols) -> Contact
 
 
 @lane_function
-def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.ndarray, unit_cols, touch: jnp.ndarray,
-                     near: Contacts):
+def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.ndarray, unit_cols: UnitColumns,
+                     touch: jnp.ndarray, near: Contacts):
     """Advance the pool one sub-step with swept collision; slot m flies ``flight[m]`` seconds
     (``combat.spawn``'s ``flight``: 0 for a projectile spawned in the last tick, which neither moves nor
     hits before the next). ``feats``: the pool's sources' ``Effects`` (``n = M``);
-    ``unit_cols``: ``damage.unit_columns(state, params)`` (its rear directions give the units'
-    headings' cosines and sines, exactly); ``touch``: ``damage.touchable``'s ``bool[M, U, ...]`` for the
+    ``unit_cols``: ``damage.unit_columns(state, params)`` (the units' headings' cosines and sines);
+    ``touch``: ``damage.touchable``'s ``bool[M, U, ...]`` for the
     slots' sources; ``near``: the pool's ``contacts`` before the move.
 
     Returns ``(state, hits, from_pos: float32[M, 2, ...])`` where ``from_pos`` is the projectile's
-    position before the move (the direction a hit comes from) and ``hits`` is ``bool[M, U, ...]``, or
-    under ``one_step_area``, when no slot can hit two units, ``(hit: bool[M, ...], unit: int32[M, ...])``.
+    position before the move (the direction a hit comes from) and ``hits`` the ``Hits`` of the pool's
+    slots: every unit (``bool[M, U, ...]``), or under ``one_step_area``, when no slot can hit two
+    units, one unit each (``unit: int32[M, ...]``).
     """
     p = state.projectiles
     u_n = state.pos.shape[0]
@@ -76,7 +77,7 @@ def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.n
     px, py = p.pos[:, 0], p.pos[:, 1]
     ux, uy = state.pos[:, 0], state.pos[:, 1]
     t_oh = one_hot(p.target, u_n, axis=1)
-    cos_h, sin_h = -unit_cols["back_x"], -unit_cols["back_y"]  # [U, ...]; negation is exact
+    cos_h, sin_h = unit_cols.cos_h, unit_cols.sin_h  # [U, ...]
 
     # Homing: straight at the target's current position; hits only its target, once within reach
     # at the end of its move (it flies at the body's centre, so it cannot pass through it).
@@ -122,9 +123,9 @@ def move_projectiles(state: State, params: Params, feats: Effects, flight: jnp.n
         area_first = argmin(jnp.where(inside, dist, jnp.inf), axis=1)
         hit_a = area & any_(inside, axis=1)
         hits_a = hit_a[:, None] & one_hot(area_first, u_n, axis=1)
-        hits = (hit_h | hit_s | hit_a, jnp.where(homing, p.target, jnp.where(straight, first, area_first)))
+        hits = Hits(hit_h | hit_s | hit_a, jnp.where(homing, p.target, jnp.where(straight, first, area_first)))
     else:
-        hits = hits_h | hits_s | hits_a
+        hits = Hits(hits_h | hits_s | hits_a)
     new_x = jnp.where(homing, hx, jnp.where(straight, sx, px))
     new_y = jnp.where(homing, hy, jnp.where(straight, sy, py))
     life = jnp.where(p.live, p.life - flight, p.life)  # an empty slot's clock stands still

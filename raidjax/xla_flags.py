@@ -34,7 +34,6 @@ from __future__ import annotations
 import functools
 import json
 import os
-import warnings
 from pathlib import Path
 
 from raidjax.files import atomic_write, cache_folder
@@ -136,8 +135,9 @@ def use_recommended_xla_flags() -> bool:
 
     Returns:
         ``True`` if ``XLA_FLAGS`` now holds every recommended flag (or a value you set for it);
-        ``False`` if nothing was changed: opted out, a jaxlib that knows none of them, or the backend had
-        already started (then with a ``RuntimeWarning`` saying so).
+        ``False`` if nothing was changed: opted out, or a jaxlib that knows none of them. Called after
+        the backend started, the flags are set but unread (JAX's public API cannot tell that moment:
+        raidjax uses no private module, and ``jax.live_arrays()`` would start the backend itself).
     """
     if os.environ.get("RAIDJAX_KEEP_XLA_FLAGS") == "1":
         return False
@@ -150,13 +150,5 @@ def use_recommended_xla_flags() -> bool:
     wanted = with_recommended(current, known)
     if wanted == current:
         return True
-    from jax._src import xla_bridge  # no public query for "has the backend started" in jax 0.4-0.10
-
-    started = getattr(xla_bridge, "backends_are_initialized", lambda: False)()
-    if started:
-        warnings.warn("raidjax.use_recommended_xla_flags(): JAX's backend has already started, so XLA_FLAGS "
-                      "can no longer change; call it before the first JAX computation", RuntimeWarning,
-                      stacklevel=2)
-        return False
     os.environ["XLA_FLAGS"] = wanted
     return True

@@ -232,6 +232,8 @@ def test_area_hits_each_unit_only_once_while_it_lingers():
                                          pos=pr.pos.at[0].set(jnp.array([0.0, 0.5])), life=pr.life.at[0].set(1.0)))
     s1, hits1, _ = _move(s, p)
     _, hits2, _ = _move(s1, p)
+    assert not hits1.single  # an area may hit several units (clean rules)
+    hits1, hits2 = hits1.hit, hits2.hit
     assert bool(hits1[0, BOSS]) and not bool(hits1[0, :BOSS].any())  # enemies only
     assert not bool(hits2.any())
     assert bool(s1.projectiles.live[0])  # still lingering

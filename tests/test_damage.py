@@ -17,6 +17,7 @@ from helpers import BOSS, CAST_1, NOOP, acts, make, run, scenario, series
 
 import raidjax.utils
 from raidjax import damage
+from raidjax.types import Hits
 
 FAST = {"skill1.projectile_speed": 0.0, "skill1.cast_time": 0.0}
 CAST = acts(CAST_1, NOOP, NOOP)
@@ -75,10 +76,10 @@ E = 800
 def mean_multiplier(key, state, params):
     """Average damage of E simultaneous hits of player 0's slot 1 on the boss / base 50."""
     feats = jax.tree.map(lambda x: jnp.broadcast_to(x[damage.source_index(0, 0, 3)], (E,)), damage.effect_table(params))
-    hits = jnp.zeros((E, 4), bool).at[:, BOSS].set(True)
+    hits = Hits(jnp.zeros((E, 4), bool).at[:, BOSS].set(True))
     from_pos = jnp.broadcast_to(state.pos[0], (E, 2))
     seeds = raidjax.utils.dice_seeds(key)
-    u_n = hits.shape[1]
+    u_n = hits.hit.shape[1]
     outcomes = damage.hit_outcomes(seeds, damage.unit_columns(state, params), feats, hits, from_pos, E, 0, u_n, ())
     sums = damage.group_sums(outcomes, feats, jnp.zeros(E, jnp.int32), hits, u_n)
     _, to_boss, _ = damage.apply_hits(state, params, sums)

@@ -1,17 +1,20 @@
 """Every lane function (``raidjax.lanes.lane_function``) gives, lane by lane, what it gives one arena.
 
-The calls are recorded from real decisions (``lanes.recording`` around eager steps of three arenas
-with different content, policies and moments of a fight), so every marked function is checked on
-the inputs the game gives it. Each one then runs with 0, 1 and 3 trailing lanes (the three arenas'
-inputs stacked last) and is compared with ``jax.vmap`` of its one-arena call over the last axis.
-A function that reduces over ``axis=-1``, indexes with ``.at[]`` on a lane, or gathers along the
-wrong axis fails here and names itself; ``test_a_planted_break_is_caught`` shows that it would.
+The calls are recorded from real decisions (``recording`` around eager steps of three arenas with
+different content, policies and moments of a fight, in the plain schedule, which runs every piece of
+work), so every marked function is checked on the inputs the game gives it. Each one then runs with
+0, 1 and 3 trailing lanes (the three arenas' inputs stacked last) and is compared with ``jax.vmap``
+of its one-arena call over the last axis. A function that reduces over ``axis=-1``, indexes with
+``.at[]`` on a lane, or gathers along the wrong axis fails here and names itself;
+``test_a_planted_break_is_caught`` shows that it would.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import inspect
+import sys
 
 import jax
 import jax.numpy as jnp
@@ -19,7 +22,7 @@ import numpy as np
 import pytest
 
 import raidjax
-from raidjax import lanes
+from raidjax import env, lanes, phases
 
 # Called only where the game's state asks for it; the recorded decisions below reach every one.
 _SITUATIONS = (  # (players, skill range, policy, decisions played before the recorded one)
@@ -27,6 +30,35 @@ _SITUATIONS = (  # (players, skill range, policy, decisions played before the re
     (("warrior", "mage", "priest"), 9.0, raidjax.policies.random, 25),
     (("priest", "warrior", "mage"), 17.0, raidjax.policies.random, 60),
 )
+
+
+@contextlib.contextmanager
+def recording():
+    """Collect the calls of every registered lane function made with concrete arrays (run the game
+    under ``jax.disable_jit()``): yields the list of ``(name, args, kwargs)``. Each function is
+    replaced while recording in every module of the package that holds it (its own, and those that
+    imported it by name), where the calls look it up."""
+    calls, patched = [], []
+
+    def recorder(name, fn):
+        @functools.wraps(fn)
+        def recorded(*args, **kwargs):
+            if not any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves((args, kwargs))):
+                calls.append((name, args, kwargs))
+            return fn(*args, **kwargs)
+        return recorded
+
+    by_function = {id(fn): name for name, fn in lanes.REGISTRY.items()}
+    for module in [m for n, m in sys.modules.items() if n == "raidjax" or n.startswith("raidjax.")]:
+        for attr, fn in list(vars(module).items()):  # also where a module imported the function by name
+            if id(fn) in by_function and callable(fn):
+                patched.append((module, attr, fn))
+                setattr(module, attr, recorder(by_function[id(fn)], fn))
+    try:
+        yield calls
+    finally:
+        for module, attr, fn in patched:
+            setattr(module, attr, fn)
 
 
 def _record_three_arenas() -> dict[str, list[tuple]]:
@@ -42,7 +74,10 @@ def _record_three_arenas() -> dict[str, list[tuple]]:
             act = policy(jax.random.key(1000 * i + t), obs, state, params)
             obs, state, *_ = step(jax.random.key(2000 * i + t), state, act, params)
         act = policy(jax.random.key(7 + i), obs, state, params)
-        with jax.disable_jit(), lanes.recording() as calls:
+        # The plain schedule (lanes.PLAIN) runs all of the work, on the values given.
+        plain = lambda *a: phases.advance_lanes(*a)  # noqa: E731 (looked up while recording)
+        with jax.disable_jit(), recording() as calls, pytest.MonkeyPatch.context() as mp:
+            mp.setattr(env, "advance", plain)
             raidjax.step(jax.random.key(9 + i), state, act, params)
         first = {}
         for name, args, kwargs in calls:
@@ -156,6 +191,6 @@ def test_a_planted_break_is_caught():
 
 def test_recording_sees_only_concrete_calls():
     """Traced calls (inside ``jit``) are not recorded: only values a test can replay are."""
-    with lanes.recording() as calls:
+    with recording() as calls:
         jax.jit(lambda x: lanes.REGISTRY["raidjax.movement.norm"](x, 0))(jnp.ones((2, 3)))
     assert calls == []

@@ -47,15 +47,14 @@ def test_argmin_first_true_and_folds_equal_jnp(data):
                                   jax.nn.one_hot(jnp.array([[2, 0]]), 3, dtype=bool).transpose(0, 2, 1))
 
 
-def test_materialize_returns_its_input_inside_and_outside_a_gate():
+def test_materialize_returns_its_input_in_either_schedule():
     tree = {"a": jnp.arange(3.0), "b": jnp.array([True, False])}
 
     @jax.jit
     def gated(t, flag):
-        with lanes.gate(flag > 0):
-            return lanes.materialize(t)
+        return lanes.materialize(lanes.Schedule(flag > 0), t)
 
-    for out in (lanes.materialize(tree), gated(tree, jnp.int32(1))):
+    for out in (lanes.materialize(lanes.PLAIN, tree), gated(tree, jnp.int32(1))):
         np.testing.assert_array_equal(out["a"], tree["a"])
         np.testing.assert_array_equal(out["b"], tree["b"])
 
@@ -67,72 +66,77 @@ def test_materialize_passes_the_leaves_of_since_by_the_conditional():
 
     @jax.jit
     def gated(x, flag):
-        with lanes.gate(flag > 0):
-            y = x * 2.0
-            out = lanes.materialize({"x": x, "y": y}, since=(x,))
+        y = x * 2.0
+        out = lanes.materialize(lanes.Schedule(flag > 0), {"x": x, "y": y}, since=(x,))
         seen["kept"], seen["new"] = out["x"] is x, out["y"] is y
         return out
 
     out = gated(jnp.arange(3.0), jnp.int32(1))
-    on_cpu = lanes.on_cpu()  # elsewhere materialize changes nothing
-    assert seen == {"kept": True, "new": not on_cpu}
+    assert seen == {"kept": True, "new": False}
     np.testing.assert_array_equal(out["y"], [0.0, 2.0, 4.0])
-    assert ("conditional" in gated.lower(jnp.arange(3.0), jnp.int32(1)).as_text("hlo")) == on_cpu
+    assert "conditional" in gated.lower(jnp.arange(3.0), jnp.int32(1)).as_text("hlo")
 
 
-def test_computed_returns_fn_and_passes_closed_over_leaves_by():
-    """Values computed inside the conditional come back unchanged; a leaf ``fn`` only closed over is
-    the very same array (no conditional output, no copy)."""
-    seen = {}
+def test_computed_returns_fn_and_passes_its_arguments_by():
+    """Values computed inside the conditional come back unchanged; an output that is one of ``fn``'s
+    arguments is the very same array (forwarded by the conditional, no copy), and ``fn`` runs once."""
+    seen = {"calls": 0}
+
+    def fn(x):
+        seen["calls"] += 1
+        return {"x": x, "y": x * 2.0, "n": jnp.sum(x > 0)}
 
     @jax.jit
     def gated(x, flag):
-        with lanes.gate(flag > 0):
-            out = lanes.computed(lambda: {"x": x, "y": x * 2.0, "n": jnp.sum(x > 0)})
+        out = lanes.computed(lanes.Schedule(flag > 0), fn, x)
         seen["kept"] = out["x"] is x
         return out
 
     out = gated(jnp.arange(3.0), jnp.int32(1))
-    assert seen["kept"]
+    assert seen == {"calls": 1, "kept": True}
     np.testing.assert_array_equal(out["y"], [0.0, 2.0, 4.0])
     assert int(out["n"]) == 2
-    on_cpu = lanes.on_cpu()  # elsewhere computed is fn()
-    assert ("conditional" in gated.lower(jnp.arange(3.0), jnp.int32(1)).as_text("hlo")) == on_cpu
-    # Outside a gate it is a plain call.
-    np.testing.assert_array_equal(lanes.computed(lambda: jnp.arange(2.0) + 1.0), [1.0, 2.0])
+    hlo = gated.lower(jnp.arange(3.0), jnp.int32(1)).as_text("hlo")
+    assert "conditional" in hlo
+    # The plain schedule is a plain call.
+    np.testing.assert_array_equal(lanes.computed(lanes.PLAIN, lambda: jnp.arange(2.0) + 1.0), [1.0, 2.0])
 
 
 def test_if_any_runs_fn_only_when_some_lane_needs_it():
     """``fn`` here gives non-zero values even where ``pred`` is false, so zeros show it was skipped."""
-    f = jax.jit(lambda pred, x: lanes.if_any(pred, lambda: (x + 1.0, x > 0)))
+    fast = lanes.Schedule(jnp.bool_(True))
+    f = jax.jit(lambda pred, x: lanes.if_any(fast, pred, lambda x: (x + 1.0, x > 0), x))
     x = jnp.array([1.0, 2.0])
     out = f(jnp.array([False, True]), x)
     np.testing.assert_array_equal(out[0], [2.0, 3.0])
     np.testing.assert_array_equal(out[1], [True, True])
     skipped = f(jnp.array([False, False]), x)
-    if lanes.on_cpu():
-        np.testing.assert_array_equal(skipped[0], [0.0, 0.0])
-        np.testing.assert_array_equal(skipped[1], [False, False])
+    np.testing.assert_array_equal(skipped[0], [0.0, 0.0])
+    np.testing.assert_array_equal(skipped[1], [False, False])
+    # In the plain schedule fn always runs.
+    np.testing.assert_array_equal(lanes.if_any(lanes.PLAIN, jnp.array([False]), lambda: x + 1.0), [2.0, 3.0])
     # Under a vmap that batches the program (lanes.batch_level) fn runs, with no conditional.
-    batched = jax.jit(jax.vmap(lambda p, v: lanes.if_any(p, lambda: v + 1.0)))
+    batched = jax.jit(jax.vmap(lambda p, v: lanes.if_any(fast, p, lambda v: v + 1.0, v)))
     np.testing.assert_array_equal(batched(jnp.array([False, False]), x), [2.0, 3.0])
     assert "conditional" not in batched.lower(jnp.array([False, False]), x).as_text("hlo")
 
 
 def test_batch_level_runs_fast_as_python_under_disable_jit():
-    """Eagerly, ``fast`` runs on the concrete values it closes over (its conditionals take one
-    branch in Python); under ``jit`` both functions are traced into the program."""
+    """Eagerly, ``fast`` runs on the concrete values it is given (its conditionals take one branch
+    in Python); under ``jit`` it is traced into the program."""
     seen = []
-    x = jnp.arange(3.0)
+    fast_schedule = lanes.Schedule(jnp.bool_(True))
 
-    def fast():
-        seen.append(isinstance(x + 0.0, jax.core.Tracer))
+    def fast(x):
+        seen.append(isinstance(x, jax.core.Tracer))
         return x * 2.0
 
+    x = jnp.arange(3.0)
     with jax.disable_jit():
-        np.testing.assert_array_equal(lanes.batch_level(fast, lambda: x * 2.0), [0.0, 2.0, 4.0])
+        np.testing.assert_array_equal(lanes.batch_level(fast_schedule, fast, lambda x: x * 2.0, x), [0.0, 2.0, 4.0])
     assert seen == [False]
-    np.testing.assert_array_equal(jax.jit(lambda: lanes.batch_level(fast, lambda: x * 2.0))(), [0.0, 2.0, 4.0])
+    program = jax.jit(lambda x: lanes.batch_level(fast_schedule, fast, lambda x: x * 2.0, x))
+    np.testing.assert_array_equal(program(x), [0.0, 2.0, 4.0])
     assert seen == [False, True]  # jitted: traced into the program
 
 
@@ -166,38 +170,44 @@ def assert_equal(a, b):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
 
 
-def test_batched_traces_only_the_program_that_runs():
+def test_batched_runs_the_lane_function_once_on_the_lanes():
     """``lanes.batched``: under ``vmap`` the lane function runs once on the lanes (arena axis last,
-    batched at any axis, unbatched arguments as one lane), and with ``out_like`` the one-arena
-    function is traced only where it runs unbatched."""
+    batched at any axis, unbatched arguments as one lane), told the XLA:CPU schedule on the CPU
+    backend. ``custom_vmap`` first traces one arena's call (the cost DESIGN.md measures); JAX keeps
+    that trace, so a later one-arena program of the same shapes does not trace again."""
     shapes = []
 
-    def f(a, b):  # a lane function: leading axis of size 3, then any lanes
-        shapes.append((a.shape, b.shape))
+    def f(a, b, fast=False):  # a lane function: leading axis of size 3, then any lanes
+        shapes.append((a.shape, b.shape, fast))
         return a + b, a * b
 
-    g = lanes.batched(f, out_like=lambda a, b: (a, a))
+    on_cpu = jax.default_backend() == "cpu"
+    g = lanes.batched(f)
     a, b = jnp.arange(12.0).reshape(4, 3), jnp.arange(3.0) + 10  # four arenas; b unbatched
     s, m = jax.jit(jax.vmap(g, in_axes=(1, None), out_axes=1))(a.T, b)
     np.testing.assert_array_equal(s.T, a + b)
     np.testing.assert_array_equal(m.T, a * b)
-    assert shapes == [((3, 4), (3, 1))]  # lanes last, the shared argument a single lane
-    np.testing.assert_array_equal(jax.jit(g)(a[0], b)[0], a[0] + b)  # one arena: now traced
+    if not on_cpu:  # elsewhere vmap batches the plain program
+        return
+    assert shapes == [((3,), (3,), True), ((3, 4), (3, 1), True)]  # then lanes last, b a single lane
+    np.testing.assert_array_equal(jax.jit(g)(a[0], b)[0], a[0] + b)  # one arena: the trace is kept
+    assert len(shapes) == 2
     with jax.disable_jit():
         np.testing.assert_array_equal(g(a[1], b)[1], a[1] * b)
-    assert [sh for sh, _ in shapes[1:]] == [(3,)] * (len(shapes) - 1)
-    default = lanes.batched(lambda a, b: f(a, b))  # no out_like: jax.eval_shape traces one arena too
-    shapes.clear()
-    jax.vmap(default, in_axes=(0, None))(a, b)
-    assert shapes == [((3,), (3,)), ((3, 4), (3, 1))]
+    assert shapes[2:] == [((3,), (3,), True)]
     # Nested vmaps (a learner's runs, each with its arenas) add one lane each, innermost first: the
-    # lane function still runs once, on every arena of every group.
+    # lane function runs on every arena of every group (after the inner vmap's lanes are traced).
     shapes.clear()
     groups = a.reshape(2, 2, 3)  # two groups of two arenas
     s, m = jax.jit(jax.vmap(jax.vmap(g, in_axes=(0, None)), in_axes=(0, None)))(groups, b)
     np.testing.assert_array_equal(s, groups + b)
     np.testing.assert_array_equal(m, groups * b)
-    assert shapes == [((3, 2, 2), (3, 1, 1))]
+    assert shapes == [((3, 2), (3, 1), True), ((3, 2, 2), (3, 1, 1), True)]
+    # Derivatives are those of the plain program.
+    shapes.clear()
+    grad = jax.grad(lambda a: jnp.sum(jax.vmap(g, in_axes=(0, None))(a, b)[1]))(a)
+    np.testing.assert_array_equal(grad, jnp.broadcast_to(b, a.shape))
+    assert all(not fast for *_, fast in shapes)
 
 
 def test_vmapped_step_equals_single_steps_bit_for_bit():
@@ -241,4 +251,4 @@ def test_nested_vmap_equals_the_flat_one():
     count = lambda f, *a: jax.jit(f).lower(*a).as_text().count("stablehlo.case")  # noqa: E731
     n_flat = count(jax.vmap(raidjax.step), *args)
     assert count(jax.vmap(jax.vmap(raidjax.step)), *map(nest, args)) == n_flat
-    assert (n_flat > 0) == lanes.on_cpu()
+    assert (n_flat > 0) == (jax.default_backend() == "cpu")

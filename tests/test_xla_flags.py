@@ -56,14 +56,6 @@ def test_only_flags_the_installed_xla_accepts_are_added(tmp_path, monkeypatch):
         xla_flags.known_flags.cache_clear()
 
 
-def test_too_late_warns_and_changes_nothing():
-    code = ("import os, warnings, jax, raidjax\njax.numpy.zeros(1).block_until_ready()\n"
-            "with warnings.catch_warnings(record=True) as w:\n    warnings.simplefilter('always')\n"
-            "    ok = raidjax.use_recommended_xla_flags()\n"
-            "print(ok, os.environ.get('XLA_FLAGS'), 'already started' in str(w[0].message))")
-    assert run(code) == "False None True"
-
-
 def test_commands_run_with_the_flags():
     """raidjax's command lines opt in before JAX starts (through ``raidjax.io.run_cli``): each
     ``--help`` in one fresh process, ``XLA_FLAGS`` unset before each."""

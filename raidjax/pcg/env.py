@@ -38,8 +38,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
+from jax.custom_batching import custom_vmap
 
-from raidjax import lanes, policies
+from raidjax import policies
 from raidjax.content import REFERENCE_PLAYERS, make_params
 from raidjax.pcg.space import PAPER_SPACE, Space, make_space
 from raidjax.playtest import auto_games_per_arena, check_args, playtest, playtest_groups
@@ -257,19 +258,22 @@ def _outcomes(tester: Callable, n_games: int, space: Space):
         results = playtest(key, skill_params(game, skill, space), tester, n_games, weights=weights, games_per_arena=gpa)
         return results["outcome"] == WIN
 
+    outcomes = custom_vmap(one)
+
+    @outcomes.def_vmap
     def rule(axis_size, in_batched, key, game, skill, weights):
         k_b, g_b, s_b, w_b = in_batched
         if any(jax.tree.leaves(g_b)) or any(jax.tree.leaves(w_b)):  # contents or testers per episode: vmap as is
             axes = [jax.tree.map(lambda b: 0 if b else None, b) for b in in_batched]
-            return jax.vmap(one, in_axes=axes)(key, game, skill, weights)
+            return jax.vmap(one, in_axes=axes)(key, game, skill, weights), True
         keys = key if k_b else jnp.broadcast_to(key, (axis_size,) + key.shape)
         skills = skill if s_b else jnp.broadcast_to(skill, (axis_size,) + skill.shape)
         contents = jax.vmap(lambda sk: skill_params(game, sk, space))(skills)
-        return _grouped_wins(tester, n_games, gpa)(keys, contents, weights)
+        return _grouped_wins(tester, n_games, gpa)(keys, contents, weights), True
 
-    # One playtest is traced only where it runs unbatched (lanes.with_vmap_rule; custom_vmap would
-    # trace it at every call, and a generator's measurements always run vmapped).
-    return lanes.with_vmap_rule(one, rule, lambda *_: jax.ShapeDtypeStruct((n_games,), jnp.bool_))
+    # custom_vmap traces one playtest at every call, also where only the rule runs (a generator's
+    # measurements always run vmapped): docs/DESIGN.md, "The lane program", has the cost.
+    return outcomes
 
 
 @functools.cache
@@ -283,22 +287,23 @@ def _grouped_wins(tester: Callable, n_games: int, games_per_arena: int):
     def grouped(keys, contents, weights):
         return playtest_groups(keys, contents, tester, n_games, games_per_arena, weights)["outcome"] == WIN
 
+    wins_of = custom_vmap(grouped)
+
+    @wins_of.def_vmap
     def rule(axis_size, in_batched, keys, contents, weights):
         k_b, c_b, w_b = in_batched
         if any(jax.tree.leaves(w_b)):
             axes = [jax.tree.map(lambda b: 0 if b else None, b) for b in in_batched]
-            return jax.vmap(grouped, in_axes=axes)(keys, contents, weights)
+            return jax.vmap(grouped, in_axes=axes)(keys, contents, weights), True
         full = lambda x, b: x if b else jnp.broadcast_to(x, (axis_size,) + x.shape)  # noqa: E731
         keys = full(keys, k_b)
         contents = jax.tree.map(full, contents, c_b)
         g = keys.shape[1]
         flat = lambda x: x.reshape((axis_size * g,) + x.shape[2:])  # noqa: E731
-        wins = wrapped(flat(keys), jax.tree.map(flat, contents), weights)
-        return wins.reshape(axis_size, g, n_games)
+        wins = wins_of(flat(keys), jax.tree.map(flat, contents), weights)
+        return wins.reshape(axis_size, g, n_games), True
 
-    wrapped = lanes.with_vmap_rule(grouped, rule, lambda keys, *_: jax.ShapeDtypeStruct(
-        (keys.shape[0], n_games), jnp.bool_))
-    return wrapped
+    return wins_of
 
 
 def measure(key: jax.Array, params: PCGParams, skill: jax.Array, n_games: int | None = None) -> jax.Array:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from raidjax.hits import Hits
 from raidjax.lanes import any_, argmin, cumsum, first_true, lane_function, pick, total
 from raidjax.movement import nearest_alive_player, norm, set_boss
 from raidjax.types import (
@@ -22,7 +23,6 @@ from raidjax.types import (
     TARGET_UNIT,
     TICK,
     TRIGGER_PASSIVE,
-    Hits,
     Params,
     Projectiles,
     Spawns,

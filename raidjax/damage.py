@@ -16,9 +16,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax.combat import EPS, TIME_EPS
+from raidjax.hits import Hits, UnitColumns
 from raidjax.lanes import lane_function, one_hot, pick, total
 from raidjax.movement import norm
-from raidjax.types import HIT_ATTACK, Effects, Hits, Params, State, UnitColumns
+from raidjax.types import HIT_ATTACK, Effects, Params, State
 from raidjax.utils import hash_dice
 
 BACK_ATTACK_COS = 0.5  # within +-60 degrees of the rear direction

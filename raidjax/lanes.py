@@ -61,11 +61,12 @@ class Schedule:
 
     Attributes:
         gate: ``None`` for the plain program: no conditionals, every piece of work runs (off the CPU
-            backend, under derivatives, inside a ``shard_map``). Otherwise a scalar
-            ``bool`` that is always true but that the compiler cannot evaluate (the sub-step loop's
-            counter compared with 0): ``materialize`` and ``computed`` branch on it, and ``if_any``,
-            ``batch_level`` and the pool's blocks skip work that no arena needs. Either way the
-            values are the same to the bit.
+            backend, under derivatives, inside a ``shard_map`` whose arguments vary along its mesh
+            axes). Otherwise a scalar ``bool`` that is always true but that the compiler cannot
+            evaluate (the sub-step loop's counter compared with 0), and that no ``vmap`` batches (the
+            functions ``batch_level`` and ``if_any`` run close over it): ``materialize`` and
+            ``computed`` branch on it, and ``if_any``, ``batch_level`` and the pool's blocks skip work
+            that no arena needs. Either way the values are the same to the bit.
     """
 
     gate: jax.Array | None = None
@@ -127,7 +128,8 @@ def batched(fn, full: tuple[int, ...] = ()):
     arena's arguments whose ``vmap`` puts the arena axis last; here the backend is decided, once per
     call (each compiled program that calls it).
 
-    ``fn(*args, fast=...)`` must work on lane arrays with any trailing lanes and return lane arrays;
+    ``fn(*args, fast=...)`` must work on lane arrays with any trailing lanes and return lane arrays,
+    each output carrying the lanes (depending on a batched argument or one at ``full``);
     ``fast`` says whether it may schedule its work for XLA:CPU (``Schedule``), with the same values.
     On the CPU backend, under ``jax.vmap`` (``jax.custom_batching.custom_vmap``) every batched
     argument's axis moves to the end; an unbatched argument gets a trailing lane of size 1 (it
@@ -136,7 +138,7 @@ def batched(fn, full: tuple[int, ...] = ()):
     output's axis moves back to the front. The lane call has the same rule, so nested ``vmap``s (a
     learner's runs, each with its arenas) add one lane each: the arenas of every run are lanes of one
     lane program, which skips the work that no arena of any run needs (``if_any``) as a single batch
-    of arenas does. Derivatives (``jax.custom_derivatives.custom_jvp``) are those of the plain program
+    of arenas does. Derivatives (``jax.custom_jvp``) are those of the plain program
     (``fast=False``: no conditionals, the same values). Off the CPU backend the plain program runs,
     and ``vmap`` batches it as any JAX function.
 
@@ -255,8 +257,7 @@ def _branch_or_zeros(pred: jax.Array, fn, args: tuple):
         out = fn(*ops)
         leaves, tree = jax.tree.flatten(out)
         at = {id(x): k for k, x in enumerate(jax.tree.leaves(ops))}
-        seen.update(tree=tree, fwd=[at.get(id(x)) for x in leaves],
-                    like=[jax.ShapeDtypeStruct(jnp.shape(x), jnp.result_type(x)) for x in leaves])
+        seen.update(tree=tree, fwd=[at.get(id(x)) for x in leaves], like=[jax.typeof(x) for x in leaves])
         return out
 
     def skipped(*ops):
@@ -264,10 +265,18 @@ def _branch_or_zeros(pred: jax.Array, fn, args: tuple):
             like, tree = jax.tree.flatten(jax.eval_shape(fn, *ops))
             seen.update(tree=tree, fwd=[None] * len(like), like=like)
         flat = jax.tree.leaves(ops)
-        return seen["tree"].unflatten([jnp.zeros(s.shape, s.dtype) if k is None else flat[k]
+        return seen["tree"].unflatten([_zeros(s) if k is None else flat[k]
                                        for k, s in zip(seen["fwd"], seen["like"], strict=True)])
 
     return jax.lax.cond(pred, taken, skipped, *args)
+
+
+def _zeros(like) -> jax.Array:
+    """Zeros of ``like``'s shape and dtype, weakly typed where ``like`` is (a Python scalar's zero
+    broadcast), so both branches of a conditional agree on the type."""
+    if getattr(like, "weak_type", False):
+        return jax.lax.full(like.shape, like.dtype.type(0).item())
+    return jnp.zeros(like.shape, like.dtype)
 
 
 def materialize(schedule: Schedule, tree, since=None):
@@ -346,7 +355,7 @@ def if_any(schedule: Schedule, pred: jax.Array, fn, *args):
     Use it only where ``fn`` gives exact zeros (or values nothing selects) whenever ``pred`` is all
     false; then the result is the same to the bit whether ``fn`` ran or not. On XLA:CPU's lane program
     the lanes are the arenas, so one test covers the whole batch and the conditional skips the
-    work. In the plain schedule and under an outer ``vmap`` of ``args`` (``batch_level``, whose rule
-    for ``fn``'s closures applies) ``fn`` always runs.
+    work. In the plain schedule and under an outer ``vmap`` of ``args`` (``batch_level``) ``fn``
+    always runs; what ``fn`` closes over must stay unbatched, as there.
     """
     return batch_level(schedule, lambda p, *a: _branch_or_zeros(jnp.any(p), fn, a), lambda p, *a: fn(*a), pred, *args)

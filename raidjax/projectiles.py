@@ -15,8 +15,9 @@ import jax.numpy as jnp
 
 from raidjax import collide
 from raidjax.combat import EPS
+from raidjax.hits import Hits, UnitColumns
 from raidjax.lanes import any_, argmin, lane_function, one_hot, pick, total
-from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Effects, Hits, Params, State, UnitColumns
+from raidjax.types import HALF_ARENA, PROJ_AREA, PROJ_HOMING, PROJ_STRAIGHT, Effects, Params, State
 
 
 class Contacts(NamedTuple):

@@ -17,7 +17,7 @@ from helpers import BOSS, CAST_1, NOOP, acts, make, run, scenario, series
 
 import raidjax.utils
 from raidjax import damage
-from raidjax.types import Hits
+from raidjax.hits import Hits
 
 FAST = {"skill1.projectile_speed": 0.0, "skill1.cast_time": 0.0}
 CAST = acts(CAST_1, NOOP, NOOP)

@@ -68,8 +68,6 @@ class Scale:
         eval_games: games of each tester on every final skill.
         preset: the trainers' preset (``cpu`` or ``paper``, in ``trainers.config.PRESETS`` of both
             learners).
-        fast_compile: compile the learners with ``trainers.loop.FAST_COMPILE`` (the smoke scale:
-            its numbers are not read).
     """
 
     tester: dict
@@ -83,7 +81,6 @@ class Scale:
     max_edits: int
     eval_games: int
     preset: str = "cpu"
-    fast_compile: bool = False
 
 
 SCALES = {
@@ -93,7 +90,7 @@ SCALES = {
                    heldout=1, grid=2, grid_games=4,
                    ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2, hidden=8, layers=1,
                             n_games=4, max_edits=4),
-                   chunk=1, episodes=1, gen_games=4, max_edits=3, eval_games=4, fast_compile=True),
+                   chunk=1, episodes=1, gen_games=4, max_edits=3, eval_games=4),
     # About half an hour on 2 CPU cores (docs/results/balancing.md): a 2 M-decision tester and 3 specialists
     # with the same budget, generators of 2 048 edits at 20 games per measurement, 6 episodes per target.
     "cpu": Scale(tester=dict(total_steps=2_000_000), heldout=3, grid=3, grid_games=40,
@@ -165,7 +162,7 @@ def win_rates(key, skills: np.ndarray, n_games: int, team: Team, tester=raidjax.
 def stage_tester(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
     out = rf.out / "tester"
     return run_mapoca(tester_config(scale, team), out, preset=scale.preset, seed=seed,
-                      resume=(out / "config.json").exists(), compiler_options=loop.compiler_options(scale.fast_compile))
+                      resume=(out / "config.json").exists())
 
 
 def train_specialists(rf: RunFolder, scale: Scale, team: Team, skills: np.ndarray, seed: int) -> dict:
@@ -179,8 +176,7 @@ def train_specialists(rf: RunFolder, scale: Scale, team: Team, skills: np.ndarra
     tables = jnp.stack([range_table(cfg.skill_ranges)] * len(skills))  # unused: the content is fixed
     keys = jax.random.split(jax.random.PRNGKey(seed + 31), len(skills))
     learner = mapoca_learner(trainer, (keys, contents, tables), len(skills),
-                             describe=lambda r: f"training win rate {r['win_rate']:.3f}",
-                             compiler_options=loop.compiler_options(scale.fast_compile))
+                             describe=lambda r: f"training win rate {r['win_rate']:.3f}")
     every = max(1, -(-cfg.checkpoint_every // cfg.updates_per_chunk))
     done = loop.train(learner, rf.path("specialists", "checkpoints"), rf.out / "specialists",
                       log=lambda s: rf.log(f"specialists: {s}"), checkpoint_every=every)
@@ -233,8 +229,7 @@ def train_generator(rf: RunFolder, scale: Scale, team: Team, name: str, seed: in
     out = rf.out / f"generator_{name}"
     return run_ppo_pcgrl(config, out, preset=scale.preset, seed=seed, chunk=scale.chunk,
                          evaluation={"eval_episodes": 0}, tester=testers(rf)[name],
-                         resume=(out / "config.json").exists(),
-                         compiler_options=loop.compiler_options(scale.fast_compile))
+                         resume=(out / "config.json").exists())
 
 
 def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:

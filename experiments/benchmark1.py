@@ -93,7 +93,6 @@ class Scale:
     heatmap_ranges: tuple[float, ...]
     checkpoint_chunks: int  # checkpoint every this many chunks
     trainer: tuple[tuple[str, object], ...] = ()
-    fast_compile: bool = False  # compile the learner with trainers.loop.FAST_COMPILE (numbers not read)
     # Runs trained side by side in one vmapped program; the groups train one after another. On the
     # 2-core CPU 8 runs of the cpu preset train at 1.06x one run's decisions/s in aggregate, 32 runs
     # at 0.97x (benchmarks/train_throughput.py --runs 1 8 32; the 32 runs' rollouts fill memory).
@@ -106,8 +105,7 @@ SCALES = {
     "smoke": Scale("cpu", total_steps=256, seeds=1, population=1, games=2, heatmap_games=2,
                    heatmap_ranges=(5.0, 13.0), checkpoint_chunks=1,
                    trainer=(("n_arenas", 16), ("n_steps", 8), ("n_minibatches", 2), ("update_epochs", 1),
-                            ("hidden", 8), ("layers", 1), ("heads", 1), ("updates_per_chunk", 1)),
-                   fast_compile=True),
+                            ("hidden", 8), ("layers", 1), ("heads", 1), ("updates_per_chunk", 1))),
     # about 1 h 50 min on 2 CPU cores (docs/results/benchmark1.md): the cpu preset, 2 seeds, populations of 2,
     # 1.5 M decisions per run
     "cpu": Scale("cpu", total_steps=1_500_000, seeds=2, population=2, games=500, heatmap_games=500,
@@ -229,7 +227,7 @@ def stage_train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, m
             return {f"win/{r['name']}/{r['seed']}": float(w) for r, w in zip(members, win, strict=True)}
 
         learner = mapoca_learner(trainer, _run_inputs(members, base_seed, idx[0]), len(members), row=row,
-                                 describe=_training_wins, compiler_options=loop.compiler_options(scale.fast_compile))
+                                 describe=_training_wins)
         done = loop.train(learner, rf.path("checkpoints", "mapoca", f"group{g}"), rf.out / "train",
                           metrics_name=f"metrics_group{g}", log=lambda s, g=g: rf.log(f"train group {g}: {s}"),
                           checkpoint_every=scale.checkpoint_chunks, max_chunks=left)

@@ -82,9 +82,6 @@ class Scale:
         decisions: overrides the ``paper`` protocol's 40 decisions per episode (``None``: 40).
         tsne_per_target: at most this many skills per (method, target) in the t-SNE figure.
         bootstrap: resamples behind the report's 95 % intervals (``b2_report.bootstrap``).
-        fast_compile: compile the PPO learner with XLA backend optimisation level 0 (compiles
-            ~3x faster, runs slower: for the smoke test; generation keeps the defaults, where
-            level 0 ran ~8x slower and saved nothing).
     """
 
     preset: str
@@ -99,7 +96,6 @@ class Scale:
     paper_ppo: dict | None = None
     paper_ppo_seeds: int = 1
     tsne_per_target: int = 300
-    fast_compile: bool = False
     bootstrap: int = 1000
 
 
@@ -111,7 +107,7 @@ SCALES = {
                    seeds=1, chunk=1, episodes=2, parts=1, gen_games=4, eval_games=4, decisions=4,
                    paper_ppo=dict(n_arenas=2, n_steps=2, total_steps=4, update_epochs=1, n_minibatches=2, hidden=16,
                                   layers=2, n_games=4, max_edits=6),
-                   fast_compile=True, bootstrap=50),
+                   bootstrap=50),
     # One resumable run on a 2-core CPU (it may span sessions), the paper protocol unchanged (40-decision
     # episodes, 300-game measurements, greedy PPO, the last measured skill): PPO both ways side by
     # side, the paper's (one model per fixed target, 20 000 steps, N = 100 games per measurement,
@@ -192,8 +188,7 @@ class _Learner:
         self.G = len(self.labels)
         self.steps_per_update = self.config.n_arenas * self.config.n_steps
         keys = jax.random.split(jax.random.key(seed + (7919 if paper else 0)), self.G)
-        self.learner = ppo_learner(self.config, keys, jnp.asarray(pairs), scale.chunk,
-                                   loop.compiler_options(scale.fast_compile))
+        self.learner = ppo_learner(self.config, keys, jnp.asarray(pairs), scale.chunk)
         self.name = "ppo_paper" if paper else "ppo"
         self.ckpt = run.out / "checkpoints" / self.name
         self.method = ppo_method(self.config)

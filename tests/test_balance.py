@@ -105,20 +105,18 @@ def _rows(path):
         return list(csv.DictReader(f))
 
 
-def test_a_run_saved_before_fast_compile_existed_still_resumes(tmp_path):
-    """The budgets a balancing run records gained ``fast_compile``: a run saved without it played at
-    XLA's default level, so it resumes under a scale that keeps the default, and only there."""
+def test_a_run_saved_with_fast_compile_still_resumes(tmp_path):
+    """The scales no longer carry ``fast_compile`` (how a smoke run's programs compiled, not what they
+    compute): a run folder saved with it, either value, resumes; any other difference still refuses."""
     from trainers.runfolder import RunFolderError
 
-    def settings(scale):
-        return {"experiment": "balance", "budgets": dataclasses.asdict(balance.SCALES[scale])}
-
-    old = settings("cpu")
-    del old["budgets"]["fast_compile"]  # as every run folder saved before the field existed
-    RunFolder(tmp_path / "run", old)
-    RunFolder(tmp_path / "run", settings("cpu"), resume=True)
-    with pytest.raises(RunFolderError, match="budgets.fast_compile: saved null, now true"):
-        RunFolder(tmp_path / "run", {**old, "budgets": {**old["budgets"], "fast_compile": True}}, resume=True)
+    settings = {"experiment": "balance", "budgets": dataclasses.asdict(balance.SCALES["cpu"])}
+    assert "fast_compile" not in settings["budgets"]
+    for i, saved in enumerate((False, True)):
+        RunFolder(tmp_path / f"run{i}", {**settings, "budgets": {**settings["budgets"], "fast_compile": saved}})
+        RunFolder(tmp_path / f"run{i}", settings, resume=True)
+    with pytest.raises(RunFolderError, match="budgets.episodes: saved"):
+        RunFolder(tmp_path / "run0", {**settings, "budgets": {**settings["budgets"], "episodes": 99}}, resume=True)
 
 
 def test_skill_gap_table_is_recomputed_from_the_raw_outputs(tmp_path):

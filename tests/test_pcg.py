@@ -260,7 +260,6 @@ def test_ppo_init_plays_no_game(monkeypatch):
 def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, goal):
     from trainers import checkpoint
     from trainers.config import PPOConfig
-    from trainers.loop import FAST_COMPILE
     from trainers.ppo_pcgrl import make_generator_policy, make_train
 
     cfg = PPOConfig(n_arenas=2, n_steps=3, total_steps=12, update_epochs=1, n_minibatches=2, hidden=8, layers=1,
@@ -269,7 +268,7 @@ def test_tiny_ppo_run_and_checkpoint_roundtrip(tmp_path, pool, goal):
                     goal_axis=(1, 1, 1, 1) if goal else None)
     train = make_train(cfg)
     key = jax.random.key(0)
-    runner, metrics = jax.jit(train).lower(key).compile(FAST_COMPILE)(key)  # its numbers are not compared
+    runner, metrics = jax.jit(train)(key)  # its numbers are not compared
     assert metrics["reward"].shape == (2,) and np.isfinite(np.asarray(metrics["pg_loss"])).all()
     assert int(runner["update"]) == 2
     assert int(np.asarray(metrics["episodes"]).sum()) >= 1  # max_edits=2 forces episode ends

@@ -50,8 +50,6 @@ class Learner:
         steps_per_update: environment steps per update and run (for the rate and the ETA).
         chunk_args: extra arguments of every chunk (e.g. per-run targets).
         donate: donate the state's buffers to the chunk (saves memory; the state is replaced).
-        compiler_options: XLA options of the init's and the chunks' compiles (``None``: the defaults;
-            ``FAST_COMPILE`` for runs whose numbers are not read).
     """
 
     init: Callable[..., Any]
@@ -67,7 +65,6 @@ class Learner:
     steps_per_update: int
     chunk_args: tuple = ()
     donate: bool = False
-    compiler_options: dict | None = None
 
     def abstract_state(self):
         """The state's shapes and dtypes (what a restore fills), without computing it."""
@@ -95,17 +92,6 @@ class Trained:
     seconds: float
     compile_seconds: float
     steps_per_s: float
-
-
-# XLA options for runs whose numbers are not read (smoke scales, which check the plumbing): LLVM at
-# optimisation level 0 compiles a learner's chunk about 3x faster and runs it slower, and its float
-# results differ from the default level's.
-FAST_COMPILE = {"xla_backend_optimization_level": 0}
-
-
-def compiler_options(fast_compile: bool) -> dict | None:
-    """``FAST_COMPILE`` if ``fast_compile`` (a scale's flag), else ``None`` (XLA's defaults)."""
-    return FAST_COMPILE if fast_compile else None
 
 
 def _lowering_state(state, n_runs: int):
@@ -144,7 +130,7 @@ def train(learner: Learner, ckpt_dir: str | Path, metrics_dir: str | Path, *, me
         start, seconds_before = int(meta["update"]), float(meta.get("seconds", 0.0))
         log(f"resumed from the checkpoint at update {start}/{total}")
     else:  # a new run, or one stopped before its first checkpoint
-        init = jax.jit(learner.init).lower(*learner.init_args).compile(learner.compiler_options)
+        init = jax.jit(learner.init).lower(*learner.init_args).compile()
         state, start, seconds_before = init(*learner.init_args), 0, 0.0
     state = put_batch(state, learner.n_runs)  # the runs split over every visible device (raidjax.sharding)
     rows_log = metrics.MetricsLog(metrics_dir, resume_update=start, name=metrics_name)
@@ -155,7 +141,7 @@ def train(learner: Learner, ckpt_dir: str | Path, metrics_dir: str | Path, *, me
         if n not in compiled:
             t = time.perf_counter()
             compiled[n] = jax.jit(learner.chunk(n), donate_argnums=(0,) if learner.donate else ()).lower(
-                _lowering_state(state, learner.n_runs), *learner.chunk_args).compile(learner.compiler_options)
+                _lowering_state(state, learner.n_runs), *learner.chunk_args).compile()
             compile_s += time.perf_counter() - t
             log(f"compiled a {n}-update chunk in {fmt_seconds(time.perf_counter() - t)}")
         t = time.perf_counter()

@@ -51,18 +51,23 @@ class RunFolderError(ValueError):
 # MA-POCA's fresh_starts and random_spawns: every earlier run continued its arenas' chains and played
 # the fixed spawns; episode_ends: every earlier run made a win terminal (the cpu preset still does;
 # the Config default is the reference trainer's "reference").
-ADDED_SETTINGS = {"senses": "raidjax", "fast_compile": False, "fresh_starts": 0.0, "random_spawns": False,
+ADDED_SETTINGS = {"senses": "raidjax", "fresh_starts": 0.0, "random_spawns": False,
                   "episode_ends": "terminal", "network": "raidjax",
                   "minibatch_rows": "decisions"}
+# Settings no longer saved, ignored where an older run saved them: the scales' fast_compile (an XLA
+# optimisation level for smoke runs) changed how a program compiled, not what it computes.
+REMOVED_SETTINGS = {"fast_compile"}
 
 
 def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:
     """``"key: saved X, now Y"`` for every (nested) setting that differs (``ADDED_SETTINGS``
-    missing from the saved side count as their old value)."""
+    missing from the saved side count as their old value; ``REMOVED_SETTINGS`` saved are ignored)."""
     out = []
     for k in sorted(set(old) | set(new)):
         a, b = old.get(k), new.get(k)
         if k not in old and k in ADDED_SETTINGS and b == ADDED_SETTINGS[k]:
+            continue
+        if k not in new and k in REMOVED_SETTINGS:
             continue
         if isinstance(a, dict) and isinstance(b, dict):
             out += _differences(a, b, f"{prefix}{k}.")

@@ -48,7 +48,7 @@ def _describe_mapoca(row: dict) -> str:
 
 
 def mapoca_learner(trainer, init_args: tuple, n_runs: int, row: Callable[[dict], dict] = summarize,
-                   describe: Callable[[dict], str] = _describe_mapoca, compiler_options: dict | None = None) -> Learner:
+                   describe: Callable[[dict], str] = _describe_mapoca) -> Learner:
     """MA-POCA (``trainers.mapoca.make_trainer``) as a ``Learner`` over ``n_runs`` runs.
 
     Args:
@@ -57,7 +57,6 @@ def mapoca_learner(trainer, init_args: tuple, n_runs: int, row: Callable[[dict],
             tables where the runs differ).
         row: host metrics of a chunk -> the row's learner fields (default: ``summarize``).
         describe: last row -> progress text.
-        compiler_options: XLA options of its compiles (``trainers.loop.Learner``).
 
     Returns:
         The learner: one row per chunk (``chunk``, ``update``, ``env_steps``, ``seconds``,
@@ -76,11 +75,10 @@ def mapoca_learner(trainer, init_args: tuple, n_runs: int, row: Callable[[dict],
     return Learner(init=jax.vmap(trainer.init), init_args=init_args, chunk=chunk,
                    policy=lambda s: s.params["actor"], rows=rows, describe=describe, config=cfg.to_dict(),
                    n_runs=n_runs, num_updates=cfg.num_updates, updates_per_chunk=cfg.updates_per_chunk,
-                   steps_per_update=cfg.decisions_per_update, donate=True, compiler_options=compiler_options)
+                   steps_per_update=cfg.decisions_per_update, donate=True)
 
 
-def ppo_learner(config: PPOConfig, keys: jax.Array, targets: jax.Array, updates_per_chunk: int,
-                compiler_options: dict | None = None, **tester) -> Learner:
+def ppo_learner(config: PPOConfig, keys: jax.Array, targets: jax.Array, updates_per_chunk: int, **tester) -> Learner:
     """PPO-PCGRL (``trainers.ppo_pcgrl.make_train``) as a ``Learner``: one group per key.
 
     Args:
@@ -88,7 +86,6 @@ def ppo_learner(config: PPOConfig, keys: jax.Array, targets: jax.Array, updates_
         keys: typed PRNG keys ``[G]``; targets: each group's (low, high) target ``float32[G, 2]``
             (``trainers.generate.target_groups``).
         updates_per_chunk: updates per jitted chunk (the last one may be shorter).
-        compiler_options: XLA options of the compiles.
         tester: ``tester=`` and ``tester_weights=`` of ``make_train`` (a learned playtester).
 
     Returns:
@@ -118,7 +115,7 @@ def ppo_learner(config: PPOConfig, keys: jax.Array, targets: jax.Array, updates_
                    chunk_args=(targets, tester_weights),
                    policy=lambda s: s["params"], rows=rows, describe=describe, config=config.to_dict(),
                    n_runs=len(keys), num_updates=config.num_updates, updates_per_chunk=updates_per_chunk,
-                   steps_per_update=steps, compiler_options=compiler_options)
+                   steps_per_update=steps)
 
 
 def eval_contents(cfg: Config) -> dict[str, raidjax.Params]:
@@ -172,7 +169,7 @@ def evaluate_teams(out: Path, cfg: Config, n_seeds: int, key: jax.Array) -> dict
 
 
 def run_mapoca(cfg: Config, out: str | Path, *, preset: str = "cpu", seeds: int = 1, seed: int = 0,
-               resume: bool = False, max_chunks: int | None = None, compiler_options: dict | None = None) -> dict:
+               resume: bool = False, max_chunks: int | None = None) -> dict:
     """Train MA-POCA in the run folder ``out`` (or resume it), then evaluate the teams.
 
     Args:
@@ -181,7 +178,6 @@ def run_mapoca(cfg: Config, out: str | Path, *, preset: str = "cpu", seeds: int 
         out: the run folder. preset: the preset's name, recorded. seeds: seeds trained together
             (vmapped). seed: base PRNG seed. resume: continue the run in ``out``.
         max_chunks: stop after this many chunks (checkpointed; rerun with ``resume``).
-        compiler_options: XLA options of the training's compiles (``trainers.loop.Learner``).
 
     Returns:
         The result (also ``out/result.json`` and the last stdout line): ``win_rate``,
@@ -196,7 +192,7 @@ def run_mapoca(cfg: Config, out: str | Path, *, preset: str = "cpu", seeds: int 
         return rf.already_finished()
     _say(f"{cfg.num_updates} updates x {cfg.decisions_per_update} decisions x {seeds} seeds; {machine()}")
     keys = jax.random.split(jax.random.PRNGKey(seed), seeds)
-    learner = mapoca_learner(make_trainer(cfg), (keys,), seeds, compiler_options=compiler_options)
+    learner = mapoca_learner(make_trainer(cfg), (keys,), seeds)
     every = max(1, -(-cfg.checkpoint_every // cfg.updates_per_chunk))
     done = train(learner, rf.out / "checkpoints", rf.out, log=_say, checkpoint_every=every, max_chunks=max_chunks)
     if not done.finished:
@@ -229,8 +225,7 @@ def _rounded(x, key: str = ""):
 
 def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", seeds: int = 1, seed: int = 0,
                   chunk: int = 4, resume: bool = False, max_chunks: int | None = None,
-                  evaluation: dict | None = None, tester: str | Path | tuple | None = None,
-                  compiler_options: dict | None = None) -> dict:
+                  evaluation: dict | None = None, tester: str | Path | tuple | None = None) -> dict:
     """Train PPO-PCGRL in the run folder ``out`` (or resume it), then measure it beside PCG-HR and
     PCG-RD.
 
@@ -244,7 +239,6 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
         tester: a trained MA-POCA run folder playing the playtests (seed 0, sampled actions)
             instead of PT-HR, in training and evaluation; or a loaded ``(policy, weights)`` pair
             (``trainers.mapoca.load_policy``, ``raidjax.policies.OrHeuristic``).
-        compiler_options: XLA options of the training's compiles (``trainers.loop.Learner``).
 
     Returns:
         The result (also ``out/result.json`` and the last stdout line): ``mean_error`` (PPO),
@@ -272,7 +266,7 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
     keys = jax.random.split(jax.random.key(seed), len(labels))
     _say(f"preset={preset} groups={len(labels)} updates={config.num_updates} "
            f"steps/update={config.n_arenas * config.n_steps} n_games={config.n_games}")
-    learner = ppo_learner(config, keys, jnp.asarray(pairs), max(1, chunk), compiler_options, **team)
+    learner = ppo_learner(config, keys, jnp.asarray(pairs), max(1, chunk), **team)
     done = train(learner, rf.out / "checkpoints", rf.out, log=_say, max_chunks=max_chunks, max_to_keep=2)
     if not done.finished:
         return {"stopped_at_update": done.update}

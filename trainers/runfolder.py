@@ -54,8 +54,9 @@ class RunFolderError(ValueError):
 ADDED_SETTINGS = {"senses": "raidjax", "fresh_starts": 0.0, "random_spawns": False,
                   "episode_ends": "terminal", "network": "raidjax",
                   "minibatch_rows": "decisions"}
-# Settings no longer saved, ignored where an older run saved them: the scales' fast_compile (an XLA
-# optimisation level for smoke runs) changed how a program compiled, not what it computes.
+# Settings no longer saved, ignored where an older run saved them: the scales' fast_compile was false
+# but for smoke runs (XLA's optimisation level 0: other float rounding, in runs whose numbers are not
+# read), so a real run resumes exactly as it would have.
 REMOVED_SETTINGS = {"fast_compile"}
 
 

@@ -183,7 +183,7 @@ def batched(fn, full: tuple[int, ...] = ()):
     def call(*args):
         if jax.default_backend() != "cpu":  # the lanes pay on XLA:CPU only (docs/DESIGN.md)
             return plain(*args)
-        if not any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves(args)):
+        if not _traced(args):
             return traced(*args, fast=True)  # concrete values: no transformation to give rules to
         return on_cpu(*args)
 

@@ -103,20 +103,12 @@ def touchable(effects: Effects, params: Params, alive: jnp.ndarray) -> jnp.ndarr
 
 
 @lane_function
-def unit_columns(state: State, params: Params, facing: jnp.ndarray | None = None) -> UnitColumns:
+def unit_columns(state: State, params: Params) -> UnitColumns:
     """``UnitColumns``: what a hit reads from the unit it touches (position, heading, evasion, agility,
-    parry, armour factor, team), read by every hit event of a sub-step.
-
-    ``facing``: ``fire``'s ``float32[U, 2, ...]`` (cos and sin of the headings before the boss turned
-    to fire), if at hand: only the boss's are then computed again, the players' being the same.
-    """
+    parry, armour factor, team), read by every hit event of a sub-step (after the casts fired: the
+    boss's heading is the one it turned to)."""
     st = params.stats
-    if facing is None:
-        cos_h, sin_h = jnp.cos(state.heading), jnp.sin(state.heading)
-    else:
-        boss = state.heading[-1:]
-        cos_h = jnp.concatenate([facing[:-1, 0], jnp.cos(boss)])
-        sin_h = jnp.concatenate([facing[:-1, 1], jnp.sin(boss)])
+    cos_h, sin_h = jnp.cos(state.heading), jnp.sin(state.heading)
     return UnitColumns(
         x=state.pos[:, 0], y=state.pos[:, 1], cos_h=cos_h, sin_h=sin_h,
         evasion=st.evasion, agility=st.agility, parry=st.parry,

@@ -110,7 +110,7 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
         state, spawns = combat.take_slots(state, spawns, match)
     skills, basic = damage.event_sources(sources, state.hp.ndim - 1)
     # The pool moves nobody: the units' columns serve every hit of the sub-step.
-    unit_cols = lanes.computed(schedule, damage.unit_columns, state, params, spawns.facing)
+    unit_cols = lanes.computed(schedule, damage.unit_columns, state, params)
     m = state.projectiles.live.shape[0]
     n_events = m + skills[0].base.shape[0] + basic[0].base.shape[0]
     with jax.named_scope("projectiles"):

@@ -2,8 +2,10 @@
 (docs/results/ablation.md; PROTOCOLS.md §12, "The reference trainer, row by row").
 
     python -m experiments.ablation --out runs/ablation [--variants today reference_ends ...] [--resume]
+    python -m experiments.ablation --out runs/paper_budget --variants paper --resume   # the paper preset
 
-Every variant is the `cpu` preset on the reference senses with ``VARIANTS``' overrides. It trains
+Every variant is the `cpu` preset on the reference senses with ``VARIANTS``' overrides, but ``paper``,
+the `paper` preset at the paper's budget (the same protocol, the same games). It trains
 ``len(ranges) x seeds`` runs (default ranges 9 and 13, 3 seeds, 1.5 M decisions each) as one
 vmapped program, run ``i`` from ``fold_in(PRNGKey(seed), i)`` in every variant, each on the
 reference content at its range (as Benchmark 1's table runs), then plays every team by the one
@@ -49,13 +51,25 @@ VARIANTS = {
     "agent_rows": ("+ minibatches of 256 agent experiences, 96 per epoch (row 10)", _AGENT_ROWS),
     "network": ("+ ML-Agents' networks, hidden 64, 4 heads (rows 11-15)",
                 {**_AGENT_ROWS, "network": "reference", "heads": 4}),
+    # Not a row added: the reference trainer whole, at the paper's budget unless --total-steps says
+    # otherwise (about 10 h per run on a 2-core CPU; docs/results/speed.md, "The learner").
+    "paper": ("the `paper` preset: every row, the reference buffer (11 arenas x 256 decisions), batch and "
+              "2 x 256 networks, 16.7 M decisions per run", None),
 }
+CPU_BUDGET = 1_500_000  # decisions per run of the variants on the cpu preset
 
 
-def variant_config(name: str, total_steps: int) -> Config:
+def variant_config(name: str, total_steps: int | None = None) -> Config:
     """The `cpu` preset on the reference senses with variant ``name``'s overrides (every variant sets
-    ``episode_ends``, so the preset's own choice, made from this ablation, does not enter)."""
-    return PRESETS["mapoca"]["cpu"].replace(senses="reference", total_steps=total_steps, eval_games=0,
+    ``episode_ends``, so the preset's own choice, made from this ablation, does not enter), or for
+    ``"paper"`` the `paper` preset. ``total_steps``: decisions per run (default: 1.5 M on the cpu
+    preset, the paper's 16.7 M for ``"paper"``)."""
+    if name == "paper":
+        paper = PRESETS["mapoca"]["paper"]
+        # 2 updates per chunk: a checkpoint every 20 updates (loop.train's 10 chunks), about 13 min
+        # of 6 runs on 2 cores, instead of 100 updates at the preset's 10 per chunk.
+        return paper.replace(total_steps=total_steps or paper.total_steps, eval_games=0, updates_per_chunk=2)
+    return PRESETS["mapoca"]["cpu"].replace(senses="reference", total_steps=total_steps or CPU_BUDGET, eval_games=0,
                                             **VARIANTS[name][1])
 
 
@@ -159,7 +173,8 @@ def main(argv=None) -> str:
     ap.add_argument("--ranges", nargs="+", type=float, default=[9.0, 13.0], help="skill ranges (reference content)")
     ap.add_argument("--seeds", type=whole_number_arg(1), default=3, help="training seeds per range")
     ap.add_argument("--seed", type=int, default=0, help="base PRNG seed of the runs (the same in every variant)")
-    ap.add_argument("--total-steps", type=whole_number_arg(1), default=1_500_000, help="decisions per run")
+    ap.add_argument("--total-steps", type=whole_number_arg(1),
+                    help=f"decisions per run (default: {CPU_BUDGET:,} on the cpu preset, the paper's for 'paper')")
     ap.add_argument("--games", type=whole_number_arg(1), default=1000, help="chained games per team and rule switch")
     ap.add_argument("--resume", action="store_true", help="continue the variants already started in --out")
     args = ap.parse_args(argv)

@@ -7,7 +7,8 @@ import json
 
 import pytest
 
-from experiments.ablation import VARIANTS, table, variant_config
+from experiments.ablation import CPU_BUDGET, VARIANTS, table, variant_config
+from trainers.config import PRESETS
 from trainers.mapoca import make_trainer
 
 
@@ -18,8 +19,17 @@ def test_every_variant_is_a_trainer_on_the_reference_senses(name):
     make_trainer(cfg)  # validates the minibatch split (no compile)
 
 
+def test_the_paper_variant_is_the_paper_preset_at_the_papers_budget():
+    paper = PRESETS["mapoca"]["paper"]
+    cfg = variant_config("paper")
+    assert cfg.total_steps == paper.total_steps == -(-50_000_000 // 3)  # 5e7 agent steps, three players
+    # only the chunking (checkpoint cadence) and the evaluation, which the ablation plays itself, differ
+    assert cfg.replace(updates_per_chunk=paper.updates_per_chunk, eval_games=paper.eval_games) == paper
+    assert variant_config("today").total_steps == CPU_BUDGET
+
+
 def test_the_rows_add_up_in_order():
-    names = list(VARIANTS)
+    names = [n for n in VARIANTS if n != "paper"]
     fields = [VARIANTS[n][1] for n in names]
     assert fields[0]["episode_ends"] == "terminal" and fields[1]["episode_ends"] == "win_bootstrapped"
     for before, after in zip(fields[2:], fields[3:], strict=False):  # from the reference ends on, cumulative

@@ -10,6 +10,7 @@ machine may be shared) and, per preset, compile seconds, seconds per update and 
     python benchmarks/train_throughput.py --presets paper cpu --repeats 3
     python benchmarks/train_throughput.py --presets cpu --pieces   # where an update's time goes
     python benchmarks/train_throughput.py --presets cpu --runs 1 8 32   # Benchmark 1's runs side by side
+    python benchmarks/train_throughput.py --presets paper --seeds 3   # also 3 seeds vmapped, as mapoca_cli --seeds 3
 
 ``--pieces`` also times, for the same arenas and decisions, (1) the environment alone
 (``raidjax.step_autoreset`` in a ``lax.scan`` with random actions and per-arena content, no networks) and (2) whole
@@ -18,7 +19,9 @@ of minibatch gradient steps (losses, gradients, Adam), and the rest of the updat
 (environment and the networks' forward passes) with the λ-returns. Random actions play a
 different game than the policy's, so the environment's share is an estimate. It also reports
 XLA's floating-point operation count of one minibatch gradient and the rate the epochs reach
-(``epoch_gflop_per_s``), to compare with what the device can do.
+(``epoch_gflop_per_s``), to compare with what the device can do, and (3) one minibatch's
+parts compiled and timed alone (``minibatch_parts``): the actor's forward and backward pass, the
+critic's, and Adam's update, each with its flop count.
 """
 
 from __future__ import annotations
@@ -40,13 +43,18 @@ PRESETS = ALL_PRESETS["mapoca"]
 from trainers.mapoca import make_trainer  # noqa: E402
 
 
-def bench(preset: str, repeats: int, **overrides) -> dict:
-    """Time whole updates of ``preset`` (with ``overrides``). Returns a JSON-able dict."""
+def bench(preset: str, repeats: int, seeds: int = 1, **overrides) -> dict:
+    """Time whole updates of ``preset`` (with ``overrides``), ``seeds`` runs vmapped together as
+    ``trainers.mapoca_cli --seeds`` trains them (1: one run, unbatched). Returns a JSON-able dict."""
     cfg = PRESETS[preset].replace(**overrides)
     trainer = make_trainer(cfg)
-    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    init, update = trainer.init, trainer.update
+    keys = jax.random.PRNGKey(0)
+    if seeds > 1:
+        init, update, keys = jax.vmap(init), jax.vmap(update), jax.random.split(keys, seeds)
+    runner = jax.jit(init)(keys)
     t0 = time.perf_counter()
-    update = jax.jit(trainer.update, donate_argnums=0).lower(runner).compile()
+    update = jax.jit(update, donate_argnums=0).lower(runner).compile()
     compile_s = time.perf_counter() - t0
     runner, m = update(runner)  # warm-up
     jax.block_until_ready(m)
@@ -57,15 +65,15 @@ def bench(preset: str, repeats: int, **overrides) -> dict:
         jax.block_until_ready(m)
         times.append(time.perf_counter() - t0)
     best = min(times)
-    n_params = sum(x.size for x in jax.tree.leaves(runner.params))
+    n_params = sum(x.size for x in jax.tree.leaves(runner.params)) // seeds
     return {
-        "preset": preset, "hidden": cfg.hidden, "layers": cfg.layers, "heads": cfg.heads,
+        "preset": preset, "seeds": seeds, "hidden": cfg.hidden, "layers": cfg.layers, "heads": cfg.heads,
         "proj_attention": cfg.proj_attention, "n_arenas": cfg.n_arenas, "n_steps": cfg.n_steps,
         "update_epochs": cfg.update_epochs, "n_minibatches": cfg.n_minibatches, "parameters": int(n_params),
         "decisions_per_update": cfg.decisions_per_update, "compile_s": round(compile_s, 2),
         "seconds_per_update": [round(t, 3) for t in times],
-        "decisions_per_s": round(cfg.decisions_per_update / best),
-        "agent_steps_per_s": round(3 * cfg.decisions_per_update / best),
+        "decisions_per_s": round(seeds * cfg.decisions_per_update / best),
+        "agent_steps_per_s": round(3 * seeds * cfg.decisions_per_update / best),
     }
 
 
@@ -162,6 +170,56 @@ def minibatch_flops(trainer, runner) -> float:
     return float(cost["flops"])
 
 
+def network_parts(trainer, runner, repeats: int) -> dict:
+    """The three parts of one minibatch step timed alone, compiled alone (best of ``repeats``): the
+    actor's forward and backward pass (its logits on the minibatch's rows), the critic's (value and
+    baselines), and Adam's update of all parameters. Each with XLA's flop count; their sum beside
+    an epoch's measured time per minibatch says what the loss algebra and the shuffling add."""
+    import jax.numpy as jnp
+    import optax
+
+    import raidjax
+
+    cfg = trainer.config
+    p = len(cfg.players)
+    by_rows = cfg.minibatch_rows == "agents"
+    b = cfg.decisions_per_update * (p if by_rows else 1) // cfg.n_minibatches
+    one = raidjax.with_senses(raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0]),
+                              cfg.senses)
+    obs, _ = jax.vmap(raidjax.reset, (0, None))(jax.random.split(jax.random.PRNGKey(0), b), one)
+    actions = jnp.zeros((b, p), jnp.int32)
+    agent = jnp.arange(b, dtype=jnp.int32) % p if by_rows else None
+    pick = (lambda x: x[jnp.arange(b), agent]) if by_rows else (lambda x: x)
+
+    def actor_loss(prm):
+        return jnp.sum(jax.nn.log_softmax(trainer.actor.apply(prm, jax.tree.map(pick, obs)))[..., 0])
+
+    def critic_loss(prm):
+        value, baseline = trainer.critic.apply(prm, obs, actions, agent)
+        return jnp.sum(value) + jnp.sum(baseline)
+
+    tx = optax.adam(cfg.lr, eps=cfg.adam_eps)
+    params = runner.params
+
+    def adam(state):
+        prm, opt = state
+        updates, opt = tx.update(jax.tree.map(jnp.ones_like, prm), opt, prm)
+        return optax.apply_updates(prm, updates), opt
+
+    out = {}
+    for name, fn, arg in (("actor", jax.grad(actor_loss), params["actor"]),
+                          ("critic", jax.grad(critic_loss), params["critic"]),
+                          ("adam", adam, (params, tx.init(params)))):
+        compiled = jax.jit(fn).lower(arg).compile()
+        cost = compiled.cost_analysis()
+        cost = cost[0] if isinstance(cost, list) else cost
+        seconds = best_seconds(compiled, arg, repeats)
+        out[name] = {"gflop": round(float(cost["flops"]) / 1e9, 3), "ms": round(1e3 * seconds, 2),
+                     "gflop_per_s": round(float(cost["flops"]) / seconds / 1e9, 1)}
+    out["rows_per_minibatch"] = b
+    return out
+
+
 def pieces(preset: str, repeats: int, whole: dict, **overrides) -> dict:
     """Split one update of ``preset`` into rollout and epochs (see the module docstring)."""
     cfg = PRESETS[preset].replace(**overrides)
@@ -175,7 +233,9 @@ def pieces(preset: str, repeats: int, whole: dict, **overrides) -> dict:
     rollout_s = one_s - epoch_s
     env_s = env_only(cfg, repeats)
     flops = minibatch_flops(trainer, runner)
+    parts = network_parts(trainer, runner, repeats)
     return {"preset": preset, "seconds_per_update": round(update_s, 4), "one_epoch_update_s": round(one_s, 4),
+            "minibatch_ms": round(1e3 * epoch_s / cfg.n_minibatches, 2), "minibatch_parts": parts,
             "epoch_s": round(epoch_s, 4), "rollout_and_returns_s": round(rollout_s, 4),
             "env_only_s": round(env_s, 4), "networks_in_rollout_s": round(rollout_s - env_s, 4),
             "minibatch_gradient_gflop": round(flops / 1e9, 3),
@@ -196,15 +256,20 @@ def main() -> None:
     ap.add_argument("--runs", type=int, nargs="+", default=[],
                     help="also time the first N runs of Benchmark 1's cpu scale trained side by side, for each N")
     ap.add_argument("--protocol", default="paper", help="Benchmark 1's protocol for --runs")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[],
+                    help="also time each preset with N seeds vmapped together (mapoca_cli --seeds N), for each N; "
+                    "decisions/s then counts all seeds")
     args = ap.parse_args()
     overrides = {} if args.arenas is None else {"n_arenas": args.arenas}
     results = [bench(p, args.repeats, **overrides) for p in args.presets]
+    results += [bench(p, args.repeats, seeds=n, **overrides) for n in args.seeds for p in args.presets]
     out = {"benchmark": "train_throughput", "machine": machine(load=True),
            "results": results}
     if args.runs:
         out["side_by_side"] = [bench_runs(n, args.repeats, args.protocol) for n in args.runs]
     if args.pieces:
-        out["pieces"] = [pieces(p, args.repeats, r, **overrides) for p, r in zip(args.presets, results, strict=True)]
+        alone = results[:len(args.presets)]  # one run each
+        out["pieces"] = [pieces(p, args.repeats, r, **overrides) for p, r in zip(args.presets, alone, strict=True)]
     print(json.dumps(out))
 
 

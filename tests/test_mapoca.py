@@ -20,7 +20,7 @@ from trainers import checkpoint
 from trainers.config import PRESETS, Config, load_config
 from trainers.mapoca import (
     Batch,
-    fresh_start,
+    begin_episodes,
     load_policy,
     loss_fn,
     make_train,
@@ -386,27 +386,51 @@ def test_orthogonal_init_is_flaxs_without_qr(shape):
     assert not re.search(r"\b(qr|geqrf|householder_product|orgqr)\b", program)
 
 
-def test_fresh_start_resets_only_drawn_arenas_that_ended():
-    """p = 1: every arena whose episode ended starts as ``raidjax.reset`` with the drawn key would
-    (no carried timer), the others keep what ``step_autoreset`` handed them; p = 0 changes nothing."""
-    n = 3
+def _ended_arenas(n: int = 3):
+    """``(params [n], state [n], actions, keys)``: arenas 0 and 2 one decision from their time limit
+    (a step ends them in a draw); ``keys`` as ``step_autoreset`` splits ``split(PRNGKey(5), n)``."""
     params = jax.vmap(lambda _: raidjax.make_params(skill_range=13.0))(jnp.arange(n))
-    obs, state = jax.vmap(raidjax.reset)(jax.random.split(jax.random.PRNGKey(0), n), params)
-    carried = state.replace(recharging=jnp.ones_like(state.recharging),
-                            recharge_left=jnp.full_like(state.recharge_left, 3.0))
-    done = jnp.array([True, False, True])
-    key = jax.random.PRNGKey(7)
-    new_state, new_obs = jax.jit(fresh_start, static_argnums=1)(key, 1.0, done, carried, obs, params)
-    _, k_reset = jax.random.split(key)
-    obs_f, state_f = jax.vmap(raidjax.reset)(jax.random.split(k_reset, n), params)
+    _, state = jax.vmap(raidjax.reset)(jax.random.split(jax.random.PRNGKey(0), n), params)
+    last = params.config.max_decisions - 1
+    state = state.replace(decision=jnp.where(jnp.array([True, False, True]), last, state.decision))
+    keys = jax.vmap(jax.random.split)(jax.random.split(jax.random.PRNGKey(5), n))  # [n, 2 (step, next), 2]
+    actions = jnp.zeros((n, 3), jnp.int32)
+    return params, state, actions, keys
+
+
+def test_begin_episodes_is_step_autoreset_second_half():
+    """p = 0, the content unchanged: ``step`` then ``begin_episodes`` hand back what
+    ``step_autoreset`` does, bit for bit (the trainer's auto-reset plays the same games)."""
+    params, state, actions, keys = _ended_arenas()
+    arena_keys = jax.random.split(jax.random.PRNGKey(5), 3)  # step_autoreset splits each as keys holds it
+    obs_a, state_a, _, done_a, _ = jax.vmap(raidjax.step_autoreset)(arena_keys, state, actions, params)
+    final, stepped, _, done, _ = jax.vmap(raidjax.step)(keys[:, 0], state, actions, params)
+    state_b, obs_b = jax.jit(begin_episodes, static_argnums=2)(keys[:, 1], jax.random.PRNGKey(7), 0.0, done, stepped,
+                                                                params)
+    assert np.asarray(done).tolist() == [True, False, True] == np.asarray(done_a).tolist()
+    for a, b in zip(jax.tree.leaves((obs_a, state_a)), jax.tree.leaves((obs_b, state_b)), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_begin_episodes_fresh_start_resets_only_drawn_arenas_that_ended():
+    """p = 1: every arena whose episode ended starts as ``raidjax.reset`` with the drawn key would
+    (no carried timer), the others keep the stepped state; the observation is the state's."""
+    params, state, actions, keys = _ended_arenas()
+    _, stepped, _, done, _ = jax.vmap(raidjax.step)(keys[:, 0], state, actions, params)
+    carried = stepped.replace(recharging=jnp.ones_like(stepped.recharging),
+                              recharge_left=jnp.full_like(stepped.recharge_left, 3.0))
+    fresh_key = jax.random.PRNGKey(7)
+    new_state, new_obs = jax.jit(begin_episodes, static_argnums=2)(keys[:, 1], fresh_key, 1.0, done, carried, params)
+    _, k_reset = jax.random.split(fresh_key)
+    _, state_f = jax.vmap(raidjax.reset)(jax.random.split(k_reset, 3), params)
     for i, want in ((0, state_f), (1, carried), (2, state_f)):
         for a, b in zip(jax.tree.leaves(jax.tree.map(lambda x, i=i: x[i], new_state)),
                         jax.tree.leaves(jax.tree.map(lambda x, i=i: x[i], want)), strict=True):
             np.testing.assert_array_equal(a, b)
     assert not bool(new_state.recharging[0].any()) and bool(new_state.recharging[1].all())
-    np.testing.assert_array_equal(new_obs.self_features[0], obs_f.self_features[0])
-    same, _ = fresh_start(key, 0.0, done, carried, obs, params)
-    assert all(bool((a == b).all()) for a, b in zip(jax.tree.leaves(same), jax.tree.leaves(carried), strict=True))
+    for a, b in zip(jax.tree.leaves(new_obs), jax.tree.leaves(jax.vmap(raidjax.observe)(new_state, params)),
+                    strict=True):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_random_spawns_train_on_drawn_openings_and_leave_the_content_as_given():

@@ -1,8 +1,8 @@
 """The content curriculum of MA-POCA training: which skill each arena plays and when it draws a
 new one. An arena draws a skill range from its run's set (``range_table``), or under
 ``Config.content_box`` a point of the content generator's box, at its start and after every
-``redraw_every``-th finished episode (the reference's ``MMORPGEnvController.ResetScene``), and
-re-observes its new episode under the new skill (``redraw``).
+``redraw_every``-th finished episode (the reference's ``MMORPGEnvController.ResetScene``); the
+trainer begins the new episode under the new skill (``trainers.mapoca.begin_episodes``).
 """
 
 from __future__ import annotations
@@ -12,11 +12,9 @@ import math
 import jax
 import jax.numpy as jnp
 
-import raidjax
 from raidjax import pcg
 from raidjax.content import with_player_skill
-from raidjax.reference_observation import start_memory
-from raidjax.types import Observation, Params, State
+from raidjax.types import Params
 from trainers.config import Config
 
 RANGE_TABLE = 12  # lcm(1, 2, 3, 4): sets of 1-4 ranges share one table shape, so draws stay uniform
@@ -87,23 +85,6 @@ def draw_skills(key: jax.Array, config: Config, range_set: jax.Array, n: int) ->
         space = pcg.make_space(config.parameters, config.players)
         return jax.random.uniform(key, (n, space.size), minval=space.low, maxval=space.high)
     return jax.random.choice(key, range_set, (n,))[:, None]
-
-
-def redraw(key: jax.Array, config: Config, redrawn: jax.Array, skills: jax.Array, range_set: jax.Array,
-           state: State, obs: Observation, params_of) -> tuple[jax.Array, State, Observation]:
-    """Arenas that drew (``redrawn bool[N]``) take a fresh skill (``draw_skills``) and observe their
-    new episode under it; under the reference senses their stacked vector restarts too (it shows
-    the skill). ``params_of(skills float32[N, K]) -> Params [N]``.
-
-    Returns:
-        ``(skills float32[N, K], state [N], obs [N])``, the others' unchanged.
-    """
-    n = skills.shape[0]
-    skills = jnp.where(redrawn[:, None], draw_skills(key, config, range_set, n), skills)
-    drawn = params_of(skills)
-    if config.senses == "reference":
-        state = where_arenas(redrawn, jax.vmap(start_memory)(state, drawn), state)
-    return skills, state, where_arenas(redrawn, jax.vmap(raidjax.observe)(state, drawn), obs)
 
 
 def where_arenas(mask: jax.Array, new, old):

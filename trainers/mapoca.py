@@ -37,7 +37,7 @@ from raidjax.env import team_reward
 from raidjax.types import LOSS, WIN, Observation, Params, State
 from trainers import checkpoint
 from trainers.config import Config
-from trainers.curriculum import draw_skills, next_draws, range_table, redraw, where_arenas, with_drawn
+from trainers.curriculum import draw_skills, next_draws, range_table, where_arenas, with_drawn
 from trainers.networks import Actor, Critic, sample_actions
 from trainers.reference_networks import ReferenceActor, ReferenceCritic
 from trainers.returns import advantages, explained_variance, game_returns
@@ -198,23 +198,31 @@ def last_seen(obs: Observation, final: Observation) -> Observation:
     return jax.tree.map(pick, obs, final).replace(alive=final.alive)
 
 
-def fresh_start(key: jax.Array, p: float, done: jax.Array, state: State, obs: Observation,
-                params: Params) -> tuple[State, Observation]:
-    """Arenas whose episode just ended (``done bool[N]``) start the next one fresh with probability
-    ``p``: ``raidjax.reset`` replaces what ``step_autoreset`` carried over (``Config.fresh_starts``).
+def begin_episodes(next_keys: jax.Array, fresh_key: jax.Array, p: float, done: jax.Array, state: State,
+                   params: Params) -> tuple[State, Observation]:
+    """The arenas whose episode just ended begin their next one, built and observed once under the
+    content it plays: ``raidjax.next_episode`` (what the arena carries over), or with probability
+    ``p`` (``Config.fresh_starts``) ``raidjax.reset``. With ``p = 0`` and unchanged ``params`` this
+    is the second half of ``raidjax.step_autoreset``.
 
     Args:
-        key: PRNG key; ``state``/``obs``: ``[N]``, the episodes ``step_autoreset`` began;
-        params: ``Params [N]``.
+        next_keys: ``uint32[N, 2]`` per-arena keys of ``next_episode`` (``step_autoreset``'s
+            second split of its key); fresh_key: PRNG key of the fresh-start draws; p: static.
+        done: ``bool[N]``; state: ``State [N]`` as the decision left it; params: ``Params [N]``,
+            the content of the episodes that begin (a redrawn skill already written in).
 
     Returns:
-        ``(state [N], obs [N])``, the arenas not drawn unchanged.
+        ``(state [N], obs [N])``: the arenas not ``done`` keep ``state`` (observed again).
     """
-    n = done.shape[0]
-    k_coin, k_reset = jax.random.split(key)
-    fresh = done & (jax.random.uniform(k_coin, (n,)) < p)
-    obs_f, state_f = jax.vmap(raidjax.reset)(jax.random.split(k_reset, n), params)
-    return where_arenas(fresh, state_f, state), where_arenas(fresh, obs_f, obs)
+    _, begun = jax.vmap(raidjax.next_episode)(next_keys, state, params)
+    if p > 0:
+        n = done.shape[0]
+        k_coin, k_reset = jax.random.split(fresh_key)
+        fresh = jax.random.uniform(k_coin, (n,)) < p
+        _, reset = jax.vmap(raidjax.reset)(jax.random.split(k_reset, n), params)
+        begun = where_arenas(fresh, reset, begun)
+    state = where_arenas(done, begun, state)
+    return state, jax.vmap(raidjax.observe)(state, params)
 
 
 def make_networks(cfg: Config):
@@ -265,7 +273,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     tx = optax.chain(*clip, optax.adam(lr, eps=cfg.adam_eps))
     env_params_of = jax.vmap(lambda content, sk: content if fixed_content else with_drawn(cfg, content, sk),
                              in_axes=(None, 0))
-    step_all = jax.vmap(raidjax.step_autoreset)
+    step_all = jax.vmap(raidjax.step)
     value_rows = "agents" if cfg.episode_ends == "reference" else "decisions"
     by_rows = cfg.minibatch_rows == "agents"
     n_players = len(cfg.players)
@@ -294,20 +302,21 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         p, obs = runner.params, runner.obs
         action, logp = sample_actions(k_act, actor.apply(p["actor"], obs), obs.alive)
         value, baseline = critic.apply(p["critic"], obs, action)
-        nxt, state, _, done, info = step_all(jax.random.split(k_env, n), runner.env_state, action,
-                                             env_params_of(runner.content, runner.skills))
-        final = info["final_observation"]
+        # step_autoreset's keys: each arena's key splits into the step's and the next episode's.
+        keys = jax.vmap(jax.random.split)(jax.random.split(k_env, n))
+        final, state, _, done, info = step_all(keys[:, 0], runner.env_state, action,
+                                               env_params_of(runner.content, runner.skills))
         next_value = critic.apply(p["critic"], final, method="value")
         death_value = (critic.apply(p["critic"], last_seen(obs, final), obs.alive, method="value")
                        if cfg.episode_ends == "reference" else next_value)
-        if cfg.fresh_starts > 0:
-            state, nxt = fresh_start(jax.random.fold_in(k_rng, 1), cfg.fresh_starts, done, state, nxt,
-                                     env_params_of(runner.content, runner.skills))
+        # The auto-reset, once: every redraw_every-th finished episode of an arena draws its next
+        # skill, then the new episodes begin and are observed under the content they play.
         episode, redrawn = next_draws(runner.episode, done, cfg.redraw_every)
         skills = runner.skills
         if multi_range:
-            skills, state, nxt = redraw(k_rng, cfg, redrawn, skills, runner.range_set, state, nxt,
-                                        lambda sk: env_params_of(runner.content, sk))
+            skills = jnp.where(redrawn[:, None], draw_skills(k_rng, cfg, runner.range_set, n), skills)
+        state, nxt = begin_episodes(keys[:, 1], jax.random.fold_in(k_rng, 1), cfg.fresh_starts, done, state,
+                                    env_params_of(runner.content, skills))
         reward = team_reward(info, done)
         ep_ret, ep_len = runner.ep_return + reward, runner.ep_length + 1
         won = done & (info["result"] == WIN)

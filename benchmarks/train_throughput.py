@@ -143,31 +143,45 @@ def env_only(cfg, repeats: int) -> float:
     return best_seconds(compiled, jax.random.PRNGKey(1), repeats)
 
 
-def minibatch_flops(trainer, runner) -> float:
-    """XLA's count of floating-point operations of one minibatch gradient (losses and their
-    gradients, no Adam), compiled alone: the networks hold no loops, so the count is complete."""
+def minibatch_rows(cfg) -> tuple[int, object, object]:
+    """``(b, obs [b, P, ...], agent int32[b] or None)``: the rows of one minibatch of ``cfg``
+    (fresh observations of the reference content; ``agent``: each row's player when a minibatch is
+    agent experiences, ``Config.minibatch_rows = "agents"``, else ``None``: whole decisions)."""
     import jax.numpy as jnp
 
     import raidjax
-    from trainers.mapoca import Batch, loss_fn
 
-    cfg = trainer.config
     p = len(cfg.players)
     by_rows = cfg.minibatch_rows == "agents"  # a minibatch of agent experiences: b rows, one player each
     b = cfg.decisions_per_update * (p if by_rows else 1) // cfg.n_minibatches
     one = raidjax.with_senses(raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0]),
                               cfg.senses)
     obs, _ = jax.vmap(raidjax.reset, (0, None))(jax.random.split(jax.random.PRNGKey(0), b), one)
+    return b, obs, (jnp.arange(b, dtype=jnp.int32) % p if by_rows else None)
+
+
+def flops(compiled) -> float:
+    """XLA's floating-point operation count of a compiled program."""
+    cost = compiled.cost_analysis()
+    return float((cost[0] if isinstance(cost, list) else cost)["flops"])
+
+
+def minibatch_flops(trainer, runner) -> float:
+    """XLA's count of floating-point operations of one minibatch gradient (losses and their
+    gradients, no Adam), compiled alone: the networks hold no loops, so the count is complete."""
+    import jax.numpy as jnp
+
+    from trainers.mapoca import Batch, loss_fn
+
+    cfg = trainer.config
+    p = len(cfg.players)
+    b, obs, agent = minibatch_rows(cfg)
     batch = Batch(obs, jnp.zeros((b, p), jnp.int32), jnp.zeros((b, p)), jnp.ones((b, p), bool), jnp.zeros(b),
                   jnp.zeros((b, p)), jnp.zeros((b, p)), jnp.zeros((b, p)))
-    agent = jnp.arange(b, dtype=jnp.int32) % p if by_rows else None
-    rows = "agents" if by_rows or cfg.episode_ends == "reference" else "decisions"
+    rows = "agents" if agent is not None or cfg.episode_ends == "reference" else "decisions"
     grad = jax.grad(loss_fn, has_aux=True)
-    compiled = jax.jit(lambda prm, bt: grad(prm, bt, trainer.actor, trainer.critic, cfg.clip_eps, cfg.ent_coef,
-                                            rows, agent)).lower(runner.params, batch).compile()
-    cost = compiled.cost_analysis()
-    cost = cost[0] if isinstance(cost, list) else cost
-    return float(cost["flops"])
+    return flops(jax.jit(lambda prm, bt: grad(prm, bt, trainer.actor, trainer.critic, cfg.clip_eps, cfg.ent_coef,
+                                              rows, agent)).lower(runner.params, batch).compile())
 
 
 def network_parts(trainer, runner, repeats: int) -> dict:
@@ -178,18 +192,10 @@ def network_parts(trainer, runner, repeats: int) -> dict:
     import jax.numpy as jnp
     import optax
 
-    import raidjax
-
     cfg = trainer.config
-    p = len(cfg.players)
-    by_rows = cfg.minibatch_rows == "agents"
-    b = cfg.decisions_per_update * (p if by_rows else 1) // cfg.n_minibatches
-    one = raidjax.with_senses(raidjax.make_params(players=list(cfg.players), skill_range=cfg.skill_ranges[0]),
-                              cfg.senses)
-    obs, _ = jax.vmap(raidjax.reset, (0, None))(jax.random.split(jax.random.PRNGKey(0), b), one)
-    actions = jnp.zeros((b, p), jnp.int32)
-    agent = jnp.arange(b, dtype=jnp.int32) % p if by_rows else None
-    pick = (lambda x: x[jnp.arange(b), agent]) if by_rows else (lambda x: x)
+    b, obs, agent = minibatch_rows(cfg)
+    actions = jnp.zeros((b, len(cfg.players)), jnp.int32)
+    pick = (lambda x: x) if agent is None else (lambda x: x[jnp.arange(b), agent])
 
     def actor_loss(prm):
         return jnp.sum(jax.nn.log_softmax(trainer.actor.apply(prm, jax.tree.map(pick, obs)))[..., 0])
@@ -211,11 +217,9 @@ def network_parts(trainer, runner, repeats: int) -> dict:
                           ("critic", jax.grad(critic_loss), params["critic"]),
                           ("adam", adam, (params, tx.init(params)))):
         compiled = jax.jit(fn).lower(arg).compile()
-        cost = compiled.cost_analysis()
-        cost = cost[0] if isinstance(cost, list) else cost
         seconds = best_seconds(compiled, arg, repeats)
-        out[name] = {"gflop": round(float(cost["flops"]) / 1e9, 3), "ms": round(1e3 * seconds, 2),
-                     "gflop_per_s": round(float(cost["flops"]) / seconds / 1e9, 1)}
+        out[name] = {"gflop": round(flops(compiled) / 1e9, 3), "ms": round(1e3 * seconds, 2),
+                     "gflop_per_s": round(flops(compiled) / seconds / 1e9, 1)}
     out["rows_per_minibatch"] = b
     return out
 
@@ -232,14 +236,14 @@ def pieces(preset: str, repeats: int, whole: dict, **overrides) -> dict:
     epoch_s = (update_s - one_s) / (cfg.update_epochs - 1) if cfg.update_epochs > 1 else float("nan")
     rollout_s = one_s - epoch_s
     env_s = env_only(cfg, repeats)
-    flops = minibatch_flops(trainer, runner)
+    grad_flops = minibatch_flops(trainer, runner)
     parts = network_parts(trainer, runner, repeats)
     return {"preset": preset, "seconds_per_update": round(update_s, 4), "one_epoch_update_s": round(one_s, 4),
             "minibatch_ms": round(1e3 * epoch_s / cfg.n_minibatches, 2), "minibatch_parts": parts,
             "epoch_s": round(epoch_s, 4), "rollout_and_returns_s": round(rollout_s, 4),
             "env_only_s": round(env_s, 4), "networks_in_rollout_s": round(rollout_s - env_s, 4),
-            "minibatch_gradient_gflop": round(flops / 1e9, 3),
-            "epoch_gflop_per_s": round(flops * cfg.n_minibatches / epoch_s / 1e9, 1),
+            "minibatch_gradient_gflop": round(grad_flops / 1e9, 3),
+            "epoch_gflop_per_s": round(grad_flops * cfg.n_minibatches / epoch_s / 1e9, 1),
             "shares": {"epochs": round(cfg.update_epochs * epoch_s / update_s, 3),
                        "environment": round(env_s / update_s, 3),
                        "rollout_networks_and_returns": round((rollout_s - env_s) / update_s, 3)}}

@@ -304,8 +304,8 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         value, baseline = critic.apply(p["critic"], obs, action)
         # step_autoreset's keys: each arena's key splits into the step's and the next episode's.
         keys = jax.vmap(jax.random.split)(jax.random.split(k_env, n))
-        final, state, _, done, info = step_all(keys[:, 0], runner.env_state, action,
-                                               env_params_of(runner.content, runner.skills))
+        content = env_params_of(runner.content, runner.skills)
+        final, state, _, done, info = step_all(keys[:, 0], runner.env_state, action, content)
         next_value = critic.apply(p["critic"], final, method="value")
         death_value = (critic.apply(p["critic"], last_seen(obs, final), obs.alive, method="value")
                        if cfg.episode_ends == "reference" else next_value)
@@ -315,8 +315,8 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         skills = runner.skills
         if multi_range:
             skills = jnp.where(redrawn[:, None], draw_skills(k_rng, cfg, runner.range_set, n), skills)
-        state, nxt = begin_episodes(keys[:, 1], jax.random.fold_in(k_rng, 1), cfg.fresh_starts, done, state,
-                                    env_params_of(runner.content, skills))
+            content = env_params_of(runner.content, skills)
+        state, nxt = begin_episodes(keys[:, 1], jax.random.fold_in(k_rng, 1), cfg.fresh_starts, done, state, content)
         reward = team_reward(info, done)
         ep_ret, ep_len = runner.ep_return + reward, runner.ep_length + 1
         won = done & (info["result"] == WIN)

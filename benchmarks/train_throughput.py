@@ -35,7 +35,7 @@ from pathlib import Path
 import jax
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script from anywhere
-from raidjax.io import machine
+from raidjax.io import machine, whole_number_arg
 from raidjax.xla_flags import use_recommended_xla_flags
 from trainers.config import PRESETS as ALL_PRESETS  # noqa: E402
 
@@ -260,7 +260,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, nargs="+", default=[],
                     help="also time the first N runs of Benchmark 1's cpu scale trained side by side, for each N")
     ap.add_argument("--protocol", default="paper", help="Benchmark 1's protocol for --runs")
-    ap.add_argument("--seeds", type=int, nargs="+", default=[],
+    ap.add_argument("--seeds", type=whole_number_arg(2), nargs="+", default=[],
                     help="also time each preset with N seeds vmapped together (mapoca_cli --seeds N), for each N; "
                     "decisions/s then counts all seeds")
     args = ap.parse_args()

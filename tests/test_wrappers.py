@@ -5,8 +5,6 @@ one action that wins."""
 
 from __future__ import annotations
 
-import importlib
-
 import flax.linen as flax_nn
 import jax
 import jax.numpy as jnp
@@ -16,24 +14,8 @@ import pytest
 
 import raidjax
 from raidjax.types import CAST_1, DRAW, N_ACTIONS, WIN
-
-
-class _OnFirstUse:
-    """A module imported when a test first reads one of its names, not when pytest collects this
-    file: jaxmarl and gymnax take about 5 s to import, which every pytest-xdist worker would pay.
-    Not importorskip: the [dev] extra installs both, and a broken install must fail, not skip."""
-
-    def __init__(self, name: str):
-        self._name = name
-
-    def __getattr__(self, attr: str):
-        if attr.startswith("_"):  # pytest's collection looks for its markers (``__test__``, ...) here
-            raise AttributeError(attr)
-        return getattr(importlib.import_module(self._name), attr)
-
-
-gymnax_env = _OnFirstUse("raidjax.wrappers.gymnax")
-jaxmarl_env = _OnFirstUse("raidjax.wrappers.jaxmarl")
+from raidjax.wrappers import gymnax as gymnax_env
+from raidjax.wrappers import jaxmarl as jaxmarl_env
 
 SHORT = raidjax.EnvConfig(max_decisions=8, n_substeps=1)
 # Casting slot 1 wins at once: the boss has 1 HP and is in range of the spawn row (18 units away),

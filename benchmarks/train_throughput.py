@@ -217,9 +217,9 @@ def network_parts(trainer, runner, repeats: int) -> dict:
                           ("critic", jax.grad(critic_loss), params["critic"]),
                           ("adam", adam, (params, tx.init(params)))):
         compiled = jax.jit(fn).lower(arg).compile()
-        seconds = best_seconds(compiled, arg, repeats)
-        out[name] = {"gflop": round(flops(compiled) / 1e9, 3), "ms": round(1e3 * seconds, 2),
-                     "gflop_per_s": round(flops(compiled) / seconds / 1e9, 1)}
+        seconds, count = best_seconds(compiled, arg, repeats), flops(compiled)
+        out[name] = {"gflop": round(count / 1e9, 3), "ms": round(1e3 * seconds, 2),
+                     "gflop_per_s": round(count / seconds / 1e9, 1)}
     out["rows_per_minibatch"] = b
     return out
 

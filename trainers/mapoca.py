@@ -38,6 +38,7 @@ from raidjax.types import LOSS, WIN, Observation, Params, State
 from trainers import checkpoint
 from trainers.config import Config
 from trainers.curriculum import draw_skills, next_draws, range_table, where_arenas, with_drawn
+from trainers.gradients import clip_by_global_norm, global_norm
 from trainers.networks import Actor, Critic, sample_actions
 from trainers.reference_networks import ReferenceActor, ReferenceCritic
 from trainers.returns import advantages, explained_variance, game_returns
@@ -269,7 +270,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         raise ValueError(f"n_minibatches: {cfg.n_minibatches} does not divide {n * t_len} decisions per update")
     grad_steps = cfg.num_updates * cfg.update_epochs * cfg.n_minibatches
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
-    clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
+    clip = [clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
     tx = optax.chain(*clip, optax.adam(lr, eps=cfg.adam_eps))
     env_params_of = jax.vmap(lambda content, sk: content if fixed_content else with_drawn(cfg, content, sk),
                              in_axes=(None, 0))
@@ -342,7 +343,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         def minibatch(carry, mb):
             params, opt_state = carry
             grads, aux = jax.grad(loss_fn, has_aux=True)(params, mb, actor, critic, cfg.clip_eps, beta, value_rows)
-            aux["grad_norm"] = jnp.sqrt(sum(jnp.sum(jnp.square(g)) for g in jax.tree.leaves(grads)))  # unclipped
+            aux["grad_norm"] = global_norm(grads)  # unclipped
             upd, opt_state = tx.update(grads, opt_state, params)
             return (optax.apply_updates(params, upd), opt_state), aux
 
@@ -359,7 +360,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
             agent = ids % n_players
             grads, aux = jax.grad(loss_fn, has_aux=True)(params, mb, actor, critic, cfg.clip_eps, beta, "agents",
                                                          agent)
-            aux["grad_norm"] = jnp.sqrt(sum(jnp.sum(jnp.square(g)) for g in jax.tree.leaves(grads)))
+            aux["grad_norm"] = global_norm(grads)
             upd, new_opt = tx.update(grads, opt_state, params)
             full = jnp.all(mb.alive[jnp.arange(ids.shape[0]), agent])
             keep = lambda new, old: jax.tree.map(lambda a, b: jnp.where(full, a, b), new, old)

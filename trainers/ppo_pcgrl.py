@@ -23,6 +23,7 @@ import optax
 
 from raidjax import pcg, policies, xla_flags
 from trainers.config import PPOConfig
+from trainers.gradients import clip_by_global_norm
 from trainers.networks import orthogonal
 
 
@@ -126,7 +127,7 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
         frac = 1.0 - count // (config.n_minibatches * config.update_epochs) / config.num_updates
         return config.lr * (frac if config.anneal_lr else 1.0)
 
-    tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(schedule, eps=1e-5))
+    tx = optax.chain(clip_by_global_norm(config.max_grad_norm), optax.adam(schedule, eps=1e-5))
 
     def init(key, target=None):
         p = env_params(config, target, tester, tester_weights)

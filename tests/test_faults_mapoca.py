@@ -81,6 +81,17 @@ def test_a_changed_file_is_caught_before_orbax_reads_it(tmp_path, capsys):
     assert f"({name}: 100 bytes, " in capsys.readouterr().err
 
 
+def test_loading_the_policy_logs_nothing(tmp_path, caplog):
+    """The policy restores as it was saved, without orbax's warning that the item folder has no
+    step metadata (reading the item's metadata through a whole-step checkpointer logged one)."""
+    ckpt = tmp_path / "checkpoints"
+    state, _ = _two_checkpoints(ckpt)
+    with caplog.at_level("DEBUG"):
+        weights, _ = checkpoint.load_policy_weights(ckpt)
+    assert np.array_equal(np.asarray(weights["w"]), 2 * state["w"])
+    assert not [r for r in caplog.records if r.levelno >= 30], [r.getMessage() for r in caplog.records]
+
+
 def test_flipped_bytes_orbax_reads_without_error_fail_the_pytree_digest(tmp_path, capsys):
     """Without its file list (a save killed just before writing it), 64 bytes flipped inside raw
     float data load without an error (the issue's silent garbage); the pytree digest catches them."""

@@ -158,10 +158,11 @@ def _placed(abstract):
 
 def _as_saved(where: Path, name: str) -> ocp.args.StandardRestore:
     """Restore arguments for item ``name`` of the step ``where`` in the shapes and dtypes it was
-    saved with (its metadata), placed on this device (``_placed``)."""
-    md = ocp.StandardCheckpointer().metadata((where / name).absolute())
-    tree = getattr(md, "item_metadata", md)
-    return ocp.args.StandardRestore(_placed(getattr(tree, "tree", tree)))
+    saved with (its metadata), placed on this device (``_placed``). The item's handler reads it:
+    a ``StandardCheckpointer`` would look for a step's ``_CHECKPOINT_METADATA`` inside the item's
+    folder and log a warning that it does not exist."""
+    md = ocp.StandardCheckpointHandler().metadata((where / name).absolute())
+    return ocp.args.StandardRestore(_placed(getattr(md, "tree", md)))
 
 
 def _restore_one(directory: Path, step: int, **items):

@@ -99,17 +99,19 @@ def diversity_rows(summ: dict) -> list[dict]:
         paper = PAPER_DIVERSITY.get(m, {})
         per = []
         for t in pm.TARGETS:
-            d = s["diversity"].get(f"{t:.1f}", {"n": 0, "param_sd": [np.nan] * 4, "pc1_sd": np.nan,
+            d = s["diversity"].get(f"{t:.1f}", {"n": 0, "kept": 0, "param_sd": [np.nan] * 4, "pc1_sd": np.nan,
                                                 "pc1_own_sd": np.nan})
             vals = list(d["param_sd"]) + [d["pc1_sd"]]
             per.append(vals + [d["pc1_own_sd"]])
             p = paper.get(t, (np.nan,) * 5)
-            rows.append({"method": m, "target": t, "n_kept": d["n"], **dict(zip(DIV_COLS, vals, strict=True)),
-                         "pc1_own": d["pc1_own_sd"], **{f"paper_{k}": v for k, v in zip(DIV_COLS, p, strict=True)}})
+            rows.append({"method": m, "target": t, "n_kept": d["n"], "kept": d["kept"],
+                         **dict(zip(DIV_COLS, vals, strict=True)), "pc1_own": d["pc1_own_sd"],
+                         **{f"paper_{k}": v for k, v in zip(DIV_COLS, p, strict=True)}})
         a = np.asarray(per, float)
         means = [float(np.nanmean(a[:, j])) if np.isfinite(a[:, j]).any() else np.nan for j in range(6)]
         p = paper.get("mean", (np.nan,) * 5)
         rows.append({"method": m, "target": "mean", "n_kept": sum(r["n_kept"] for r in rows if r["method"] == m),
+                     "kept": sum(r["kept"] for r in rows if r["method"] == m),
                      **dict(zip(DIV_COLS, means[:5], strict=True)), "pc1_own": means[5],
                      **{f"paper_{k}": v for k, v in zip(DIV_COLS, p, strict=True)}})
     return rows
@@ -138,16 +140,19 @@ def _control_md(rows: list[dict]) -> str:
               "PPO 0.248, PCG-RD 0.373.")
 
 
-def _diversity_md(rows: list[dict]) -> str:
-    body = [[_t(r["target"]), r["method"], r["n_kept"]] + [f"{_f(r[k])} ({_f(r['paper_' + k])})" for k in DIV_COLS]
-            + [_f(r["pc1_own"])] for r in sorted(rows, key=lambda r: (r["target"] == "mean", str(r["target"])))]
+def _diversity_md(rows: list[dict], min_kept: int) -> str:
+    body = [[_t(r["target"]), r["method"], f"{r['n_kept']} ({r['kept']})"]
+            + [f"{_f(r[k])} ({_f(r['paper_' + k])})" for k in DIV_COLS] + [_f(r["pc1_own"])]
+            for r in sorted(rows, key=lambda r: (r["target"] == "mean", str(r["target"])))]
     return ("## Diversity: SD of min-max-normalised parameters and of PC1, ours (paper)\n\n"
-            + markdown_table(["target", "method", "n kept", "range", "cool time", "cast time", "coefficient",
+            + markdown_table(["target", "method", "n (kept)", "range", "cool time", "cast time", "coefficient",
                               "PC1", "PC1 own axis"], body)
-            + "\n\nSkills with |W_t − W_c| < 0.1; normalisation and PCA over the pooled kept skills of all "
+            + "\n\nKept: skills with |W_t − W_c| < 0.1; n: those measured, every group that kept at least "
+              f"{min_kept} cut to one size (the smallest such group's, at most the protocol's); `–`: a group that "
+              f"kept fewer than {min_kept}, left out. Normalisation and PCA over the pooled measured skills of all "
               "methods (PROTOCOLS.md §11); `PC1 own axis`: SD along the (method, target) group's own first axis, "
-              "a check that a lead does not come from the pooled axis; `–` where fewer than 2 skills were "
-              "kept. `mean` rows: mean over targets.")
+              "a check that a lead does not come from the pooled axis. `mean` rows: mean over the measured "
+              "targets.")
 
 
 def _yield_md(rows: list[dict]) -> str:
@@ -159,7 +164,8 @@ def _yield_md(rows: list[dict]) -> str:
               "(the paper reports no yield numbers).")
 
 
-def bootstrap(gens: dict, protocol: pm.Protocol | None = None, n_boot: int = 1000, seed: int = 0) -> dict:
+def bootstrap(gens: dict, protocol: pm.Protocol | None = None, n_boot: int = 1000, seed: int = 0,
+              min_kept: int = 2) -> dict:
     """95 % percentile bootstrap intervals of each method's headline numbers: episodes resampled
     with replacement within each (method, target) group, ``pm.summarize`` recomputed on every
     resample (the pooled normalisation and PCA included).
@@ -179,7 +185,7 @@ def bootstrap(gens: dict, protocol: pm.Protocol | None = None, n_boot: int = 100
         for m, g in gens.items():
             idx = np.concatenate([rng.choice(ix, ix.size) for ix in groups[m]])
             sample[m] = {k: np.asarray(v)[idx] for k, v in g.items()}
-        for m, s in pm.summarize(sample, protocol).items():
+        for m, s in pm.summarize(sample, protocol, min_kept).items():
             for k, get in keys.items():
                 draws[m][k].append(get(s))
     ci = lambda x: tuple(float(v) for v in np.nanpercentile(x, [2.5, 97.5])) if np.isfinite(x).any() else (
@@ -317,7 +323,7 @@ def error_vs_diversity_figure(crow: list[dict], drow: list[dict]):
 
 
 def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300,
-           protocol: pm.Protocol | None = None, n_boot: int = 1000) -> dict:
+           protocol: pm.Protocol | None = None, n_boot: int = 1000, min_kept: int = 2) -> dict:
     """Write the tables, CSVs and figures of Benchmark 2 into ``run``.
 
     Args:
@@ -327,21 +333,23 @@ def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300
         tsne_per_target: at most this many skills per (method, target) in the t-SNE.
         protocol: which episodes count and how groups are cut (``summarize``; default raidjax's).
         n_boot: bootstrap resamples behind the intervals (``bootstrap``).
+        min_kept: diversity leaves out (method, target) groups that kept fewer skills
+            (``raidjax.pcg.quality.diversity``).
 
     Returns:
         JSON-able ``mean_error``, ``pc1_sd``, ``yield``, ``edits`` and ``n_controllability`` per
         method, and ``seconds``.
     """
     t0 = time.perf_counter()
-    summ = pm.summarize(gens, protocol)
+    summ = pm.summarize(gens, protocol, min_kept)
     crow, drow, yrow = controllability_rows(summ), diversity_rows(summ), yield_rows(gens)
     run.write_csv("controllability", crow)
     run.write_csv("diversity", drow)
     run.write_csv("yield", yrow)
     run.write_table("controllability", _control_md(crow))
-    run.write_table("diversity", _diversity_md(drow))
+    run.write_table("diversity", _diversity_md(drow, min_kept))
     run.write_table("yield", _yield_md(yrow))
-    ci = bootstrap(gens, protocol, n_boot, seed)
+    ci = bootstrap(gens, protocol, n_boot, seed, min_kept)
     run.write_table("summary", _summary_md(summ, ci, n_boot))
     run.save_figure("controllability", controllability_figure(crow), dpi=85)
     run.save_figure("error_vs_diversity", error_vs_diversity_figure(crow, drow), dpi=90)

@@ -82,6 +82,8 @@ class Scale:
         decisions: overrides the ``paper`` protocol's 40 decisions per episode (``None``: 40).
         tsne_per_target: at most this many skills per (method, target) in the t-SNE figure.
         bootstrap: resamples behind the report's 95 % intervals (``b2_report.bootstrap``).
+        min_kept: the diversity table leaves out (method, target) groups that kept fewer skills
+            and cuts the others to the smallest one's size (``raidjax.pcg.quality.diversity``).
     """
 
     preset: str
@@ -97,6 +99,7 @@ class Scale:
     paper_ppo_seeds: int = 1
     tsne_per_target: int = 300
     bootstrap: int = 1000
+    min_kept: int = 20
 
 
 SCALES = {
@@ -107,7 +110,7 @@ SCALES = {
                    seeds=1, chunk=1, episodes=2, parts=1, gen_games=4, eval_games=4, decisions=4,
                    paper_ppo=dict(n_arenas=2, n_steps=2, total_steps=4, update_epochs=1, n_minibatches=2, hidden=16,
                                   layers=2, n_games=4, max_edits=6),
-                   bootstrap=50),
+                   bootstrap=50, min_kept=2),
     # One resumable run on a 2-core CPU (it may span sessions), the paper protocol unchanged (40-decision
     # episodes, 300-game measurements, greedy PPO, the last measured skill): PPO both ways side by
     # side, the paper's (one model per fixed target, 20 000 steps, N = 100 games per measurement,
@@ -172,6 +175,10 @@ def _parse(argv=None) -> argparse.Namespace:
                     help="generation episodes per target and method, in parts of the scale's size (cpu: "
                     f"{SCALES['cpu'].episodes // SCALES['cpu'].parts} episodes per part; part i is the same "
                     "whatever the count) (default: the scale's)")
+    ap.add_argument("--min-kept", type=whole_number_arg(2),
+                    help="diversity: (method, target) groups that kept fewer skills are left out, the others cut to "
+                    "the smallest one's size; a finished run resumed with another value is reported again "
+                    f"(default: the scale's, cpu {SCALES['cpu'].min_kept})")
     ap.add_argument("--pool-repeats", action="store_true",
                     help="generation env: re-measuring an unchanged skill pools its games (all three "
                     "generators, training and generation)")
@@ -358,6 +365,10 @@ def compute_time(run: RunFolder, tr: dict, tr_paper: dict | None) -> dict:
             "commits": sorted({r["machine"]["commit"] for r in recs.values()})}
 
 
+# Settings only the report reads (its stage records them): a run resumed with other values is reported again.
+REPORT_SETTINGS = ("bootstrap", "min_kept")
+
+
 def scale_of(a) -> Scale:
     """The run's ``Scale``: ``SCALES[a.scale]`` with the command line's overrides (``_parse``'s
     namespace). ``--episodes`` keeps the scale's episodes per part and sets the number of parts, so
@@ -372,7 +383,8 @@ def scale_of(a) -> Scale:
                          f"{per_part} episodes per part")
     episodes = {} if a.episodes is None else {"episodes": a.episodes, "parts": a.episodes // per_part}
     scale = dataclasses.replace(scale, ppo={**scale.ppo, **{k: v for k, v in ppo.items() if v is not None}},
-                                **({"seeds": a.seeds} if a.seeds is not None else {}), **episodes)
+                                **({"seeds": a.seeds} if a.seeds is not None else {}),
+                                **({"min_kept": a.min_kept} if a.min_kept is not None else {}), **episodes)
     if per_part % scale.seeds:
         raise ValueError(f"--seeds: {scale.seeds} PPO seeds must split the {per_part} episodes per part "
                          f"per target evenly")
@@ -391,7 +403,12 @@ def main(argv=None) -> dict:
               "ppo_config": dataclasses.asdict(ppo_config(scale)), "targets": list(pm.TARGETS),
               **({"paper_ppo_config": dataclasses.asdict(paper_ppo_config(scale))} if scale.paper_ppo is not None
                  else {})}
-    run = RunFolder(a.out, config, resume=a.resume, ignore=("bootstrap",))  # report-only: may change
+    run = RunFolder(a.out, config, resume=a.resume, ignore=REPORT_SETTINGS)
+    settings = {k: config[k] for k in REPORT_SETTINGS}
+    made_with = (run.result("report") or {}).get("settings", {})
+    if run.done("report") and made_with != settings:  # checked on every resume: a kill cannot skip it
+        run.redo("report", ", ".join(f"{k} {made_with.get(k, 'unrecorded')} -> {v}" for k, v in settings.items()
+                                     if made_with.get(k) != v))
     if run.finished:
         return run.already_finished()
     if "started" not in run.records():  # the run's first start: where its wall-clock span begins
@@ -404,9 +421,10 @@ def main(argv=None) -> dict:
     tr_paper = (run.stage("train_paper_ppo", lambda: stage_train(run, scale, a.seed, paper=True))
                 if scale.paper_ppo is not None else None)
     ge = run.stage("generate", lambda: stage_generate(run, scale, a.seed, a.protocol))
-    rep = run.stage("report", lambda: b2_report.report(run, load_generated(run.out / "generated.npz"),
-                                                          seed=a.seed, tsne_per_target=scale.tsne_per_target,
-                                                          protocol=pr, n_boot=scale.bootstrap))
+    rep = run.stage("report", lambda: {**b2_report.report(run, load_generated(run.out / "generated.npz"), seed=a.seed,
+                                                             tsne_per_target=scale.tsne_per_target, protocol=pr,
+                                                             n_boot=scale.bootstrap, min_kept=scale.min_kept),
+                                       "settings": settings})
     summary = {"benchmark": 2, "scale": a.scale, "seed": a.seed, "protocol": a.protocol,
                **{k: rep.get(k) for k in ("mean_error", "pc1_sd", "pc1_own_sd", "yield", "edits", "n_controllability",
                                           "ci95")},

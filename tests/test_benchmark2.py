@@ -138,6 +138,22 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, smoke_run):
     assert any("already finished: nothing to do" in line for line in new_log)
     assert again["mean_error"] == summary["mean_error"]
 
+    # A report setting changed: only the report is done again, with it; then a no-op again.
+    regen = (out / "generated.npz").stat().st_mtime_ns
+    again = b2.main([*SMOKE, "--out", str(out), "--resume", "--min-kept", "3"])
+    new_log = (out / "log.txt").read_text().splitlines()[n_log:]
+    assert any("stage report: to be done again (min_kept 2 -> 3)" in line for line in new_log)
+    assert any("stage generate: already done, skipped" in line for line in new_log)
+    assert (out / "generated.npz").stat().st_mtime_ns == regen and again["mean_error"] == summary["mean_error"]
+    assert json.loads((out / "config.json").read_text())["min_kept"] == 3
+    div = [r for r in _csv(out / "csv" / "diversity.csv") if r["target"] != "mean"]
+    measured = {int(r["n_kept"]) for r in div if int(r["kept"]) >= 3}
+    assert all(int(r["n_kept"]) == 0 and r["pc1"] in ("", "nan") for r in div if int(r["kept"]) < 3)
+    assert len(measured) <= 1 and all(n >= 3 for n in measured)  # one size, the smallest group left in
+    n_log = len((out / "log.txt").read_text().splitlines())
+    b2.main([*SMOKE, "--out", str(out), "--resume", "--min-kept", "3"])
+    assert any("already finished: nothing to do" in line for line in (out / "log.txt").read_text().splitlines()[n_log:])
+
     # Other settings into the same folder: a clear error.
     with pytest.raises(ValueError, match="other settings"):
         b2.main(["--scale", "cpu", "--out", str(out), "--resume"])

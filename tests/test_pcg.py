@@ -205,13 +205,32 @@ def test_diversity_on_hand_set():
     skills = np.array([[1.0, 0.5, 0.5, 0.5], [20.0, 0.5, 0.5, 0.5], [10.5, 0.5, 0.5, 0.5], [5.0, 0.6, 1.5, 1.0]])
     errors = np.array([0.0, 0.05, 0.09, 0.5])  # the last one is dropped (error >= 0.1)
     d = pm.diversity(skills, errors, np.array(["a", "a", "b", "a"]))
-    assert set(d) == {"a", "b"} and d["a"]["n"] == 2 and d["b"]["n"] == 1
+    # b kept one skill: left out of the scaling and PCA (min_kept 2), its count reported.
+    assert set(d) == {"a", "b"} and d["a"]["n"] == 2 and (d["b"]["n"], d["b"]["kept"]) == (0, 1)
     # Kept set varies only in range: normalised ranges 0 and 1 in group a -> SD 0.5; PC1 = range.
     np.testing.assert_allclose(d["a"]["param_sd"], [0.5, 0, 0, 0], atol=1e-9)
     assert d["a"]["pc1_sd"] == pytest.approx(0.5)
     assert np.isnan(d["b"]["pc1_sd"]) and np.isnan(d["b"]["pc1_own_sd"])
     y = pm.yield_stats({"reached": np.array([True, False]), "edits": np.array([4, 40])})
     assert y == {"yield": 0.5, "edits_mean": 22.0, "edits_sd": 18.0}
+
+
+def test_diversity_leaves_out_groups_that_kept_too_few_and_cuts_the_rest_to_one_size():
+    # Group a keeps 3 skills, b 2 (its third misses the threshold), c 1: with min_kept 2 and a cut
+    # to at most 300, c is left out and a is cut to b's 2; with min_kept 3 only a is measured, whole.
+    skills = np.array([[1.0, 0.5, 0.5, 0.5], [20.0, 0.5, 0.5, 0.5], [10.5, 0.5, 0.5, 0.5],
+                       [5.0, 0.6, 1.5, 1.0], [6.0, 0.6, 1.5, 1.0], [7.0, 0.6, 1.5, 1.0], [8.0, 0.6, 1.5, 1.0]])
+    errors = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.0])
+    groups = np.array(["a", "a", "a", "b", "b", "b", "c"])
+    d = pm.diversity(skills, errors, groups, group_size=300)
+    assert {g: (v["n"], v["kept"]) for g, v in d.items()} == {"a": (2, 3), "b": (2, 2), "c": (0, 1)}
+    assert np.isnan(d["c"]["pc1_sd"]) and np.isfinite(d["a"]["pc1_sd"])
+    d = pm.diversity(skills, errors, groups, group_size=300, min_kept=3)
+    assert {g: (v["n"], v["kept"]) for g, v in d.items()} == {"a": (3, 3), "b": (0, 2), "c": (0, 1)}
+    # Only a is scaled: its ranges 1, 20, 10.5 -> 0, 1, 0.5, the sole spread, so PC1 is the range.
+    assert d["a"]["pc1_sd"] == pytest.approx(np.std([0.0, 1.0, 0.5]))
+    with pytest.raises(ValueError, match="min_kept: 1"):
+        pm.diversity(skills, errors, groups, min_kept=1)
 
 
 def test_pc1_on_the_pooled_axis_and_on_each_groups_own_axis():

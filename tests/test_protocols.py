@@ -128,7 +128,8 @@ def test_diversity_cuts_groups_to_equal_size_before_scaling_and_pca():
     assert unequal["B"]["pc1_sd"] == pytest.approx(_b_pc1_sd(6))  # 0.2774
     assert equal["B"]["pc1_sd"] == pytest.approx(_b_pc1_sd(2))  # 0.3077
     assert abs(equal["B"]["pc1_sd"] - unequal["B"]["pc1_sd"]) > 0.02
-    assert (equal["A"]["n"], equal["B"]["n"], unequal["A"]["n"]) == (2, 2, 6) and "C" not in equal
+    assert (equal["A"]["n"], equal["B"]["n"], unequal["A"]["n"]) == (2, 2, 6)
+    assert (equal["C"]["n"], equal["C"]["kept"]) == (0, 1) and np.isnan(equal["C"]["pc1_sd"])
     assert equal["A"]["pc1_sd"] == 0.0 and equal["B"]["param_sd"][0] == pytest.approx(0.5)
 
 

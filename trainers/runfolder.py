@@ -168,6 +168,20 @@ class RunFolder:
         """Whether stage ``name`` has finished (its result is on disk)."""
         return (self.out / "stages" / f"{name}.json").exists()
 
+    def result(self, name: str) -> Any:
+        """Stage ``name``'s stored JSON result (``None`` if it has not finished)."""
+        p = self.out / "stages" / f"{name}.json"
+        return json.loads(p.read_text()) if p.exists() else None
+
+    def redo(self, name: str, why: str) -> None:
+        """Forget the run's summary, then stage ``name``'s result (in that order: a run killed
+        between the two is not finished and redoes the stage), so that the stage runs again and
+        the run finishes again; the stages before it stay done. ``why`` is logged."""
+        for p in (self.out / "summary.json", self.out / "stages" / f"{name}.json"):
+            p.unlink(missing_ok=True)
+        self.finished = False
+        self.log(f"stage {name}: to be done again ({why})")
+
     def stage(self, name: str, fn: Callable[[], Any]) -> Any:
         """Run ``fn()`` once: return its stored JSON result if stage ``name`` already finished,
         otherwise run it, store the (JSON-able) result atomically and return it."""

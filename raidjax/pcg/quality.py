@@ -214,32 +214,44 @@ def first_pc(x: np.ndarray) -> np.ndarray:
 
 
 def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, threshold: float = 0.1,
-              group_size: int | None = None, seed: int = 1) -> dict:
-    """Diversity (PROTOCOLS.md §11): keep skills with error < ``threshold``, optionally cut every group to
-    one size, min-max normalise the 4 parameters over the pooled (cut) set, fit PCA on it, then
-    per group the SD of each parameter and of PC1.
+              group_size: int | None = None, seed: int = 1, min_kept: int = 2) -> dict:
+    """Diversity (PROTOCOLS.md §11): keep skills with error < ``threshold``, leave out groups that
+    kept fewer than ``min_kept``, optionally cut every other group to one size, min-max normalise
+    the 4 parameters over the pooled (cut) set, fit PCA on it, then per group the SD of each
+    parameter and of PC1.
 
     Args:
         skills: ``[n, K]`` generated skills (any groups pooled, e.g. all methods and targets).
         errors: ``[n]`` ``|W_t - W_c|``.
         groups: ``[n]`` hashable labels, e.g. ``"PPO|0.3"``.
         threshold: error cut-off.
-        group_size: cut the kept skills of every group with >= 2 of them to one size before the
-            scaling and PCA (``equal_groups``; the reference notebook: 300); ``None``: all kept.
+        group_size: cut the kept skills of every group left in to one size before the scaling and
+            PCA (``equal_groups``; the reference notebook: 300); ``None``: all kept.
         seed: the cut's seed.
+        min_kept: groups that kept fewer skills are left out of the cut, the scaling and the PCA
+            (at least 2: an SD needs two). The reference notebook's groups all kept its 300; a
+            smaller run sets how few skills an SD may rest on instead of cutting every group down
+            to its smallest one.
 
     Returns:
-        ``{group: {"n", "param_sd": [4], "pc1_sd", "pc1_own_sd"}}`` (SD ddof 0; NaN for groups with
-        < 2 kept). ``pc1_own_sd`` is the SD along the group's own first principal axis (same
-        normalisation): the pooled axis follows whichever method spreads most, so it is reported
-        beside ``pc1_sd`` as a check that a lead does not come from the choice of axis.
+        ``{group: {"n", "kept", "param_sd": [4], "pc1_sd", "pc1_own_sd"}}`` for every group with a
+        kept skill: ``kept`` skills under the threshold, ``n`` of them measured (0 for a group left
+        out; SD ddof 0; NaN where ``n`` < 2). ``pc1_own_sd`` is the SD along the group's own first
+        principal axis (same normalisation): the pooled axis follows whichever method spreads most,
+        so it is reported beside ``pc1_sd`` as a check that a lead does not come from the choice of
+        axis.
     """
+    if min_kept < 2:
+        raise ValueError(f"min_kept: {min_kept} skills cannot have an SD; use 2 or more")
     skills, errors, groups = np.asarray(skills, float), np.asarray(errors), np.asarray(groups)
-    keep = np.flatnonzero(errors < threshold)
+    kept = np.flatnonzero(errors < threshold)
+    labels, counts = np.unique(groups[kept], return_counts=True)
+    out = {g: {"n": 0, "kept": int(c), "param_sd": [float("nan")] * skills.shape[1], "pc1_sd": float("nan"),
+               "pc1_own_sd": float("nan")} for g, c in zip(labels.tolist(), counts, strict=True) if c < min_kept}
+    keep = kept[~np.isin(groups[kept], list(out))] if out else kept
     if group_size is not None:
-        keep = keep[equal_groups(groups[keep], group_size, seed, min_size=2)]
+        keep = keep[equal_groups(groups[keep], group_size, seed)]
     x = skills[keep]
-    out = {}
     if x.shape[0] == 0:
         return out
     lo, hi = x.min(0), x.max(0)
@@ -249,7 +261,8 @@ def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, thresh
     for g in np.unique(groups[keep]):
         m = groups[keep] == g
         n = int(m.sum())
-        out[g] = {"n": n, "param_sd": (xn[m].std(0) if n > 1 else np.full(x.shape[1], np.nan)).tolist(),
+        out[g] = {"n": n, "kept": int((groups[kept] == g).sum()),
+                  "param_sd": (xn[m].std(0) if n > 1 else np.full(x.shape[1], np.nan)).tolist(),
                   "pc1_sd": float(proj[m].std()) if n > 1 else float("nan"),
                   "pc1_own_sd": float(((xn[m] - xn[m].mean(0)) @ first_pc(xn[m])).std()) if n > 1 else float("nan")}
     return out
@@ -291,18 +304,19 @@ def win_rate_noise(key: jax.Array, skill, n_games_list=(25, 50, 100, 300), repea
     return out
 
 
-def summarize(gens: dict, protocol: Protocol | None = None) -> dict:
+def summarize(gens: dict, protocol: Protocol | None = None, min_kept: int = 2) -> dict:
     """Controllability, yield and diversity (pooled normalisation and PCA over all methods) per
     method, episodes kept and groups cut as ``protocol`` says.
 
     Args:
         gens: ``{method: generate output}``.
         protocol: a ``Protocol`` (default ``PROTOCOLS["raidjax"]``).
+        min_kept: diversity leaves out (method, target) groups that kept fewer skills (``diversity``).
 
     Returns:
         ``{method: {"controllability": controllability(...), "yield", "edits_mean", "edits_sd",
         "pc1_sd_mean", "pc1_own_sd_mean", "param_sd_mean": [4] | None, "diversity": {target: ...}}}``
-        (means over targets; NaN where no target has 2 kept skills).
+        (means over the targets whose group is measured, ``diversity``; NaN where none is).
     """
     pr = PROTOCOLS["raidjax"] if protocol is None else protocol
     skills, errs, groups = [], [], []
@@ -312,7 +326,7 @@ def summarize(gens: dict, protocol: Protocol | None = None) -> dict:
         errs.append(np.abs(g["target"] - g["win_rate"])[k])
         groups += [f"{name}|{t:.1f}" for t in g["target"][k]]
     div = diversity(np.concatenate(skills), np.concatenate(errs), np.asarray(groups), group_size=pr.group_size,
-                    seed=pr.seed)
+                    seed=pr.seed, min_kept=min_kept)
     size = pr.group_size
     if size is not None:  # one size for every (method, target) group: the smallest, at most group_size
         counts = [np.unique(np.round(g["target"][np.asarray(g["edits"]) >= pr.min_edits], 6), return_counts=True)[1]

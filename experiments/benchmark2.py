@@ -117,10 +117,10 @@ SCALES = {
     # one seed) and raidjax's (the cpu preset: one model for all targets, target observed, N = 50,
     # 10 240 steps), then 30 episodes per target and method (paper: 5 000 skills per target, 300
     # kept) in 3 parts of 10, every method's episodes side by side (one part's measurement is
-    # 4 x 7 x 10 x 300 = 84 000 games). At the rates measured on 2 cores (docs/results/speed.md,
-    # "Benchmark 2's games beside a playtest") it takes about 3 h 40 min: the paper's PPO trains on
-    # 7 x 20 000 x 100 = 14 M games (about 2 h 5 min at 1 870 games/s), generation plays
-    # 4 x 7 x 30 x 40 x 300 = 10.1 M (about 1 h 30 min), ours 0.5 M (about 4 min).
+    # 4 x 7 x 10 x 300 = 84 000 games). Measured on 2 cores (docs/results/benchmark2.md): 7 h 37 min of
+    # compute: the paper's PPO trains on 7 x 20 000 x 100 = 14 M games in about 4 h 55 min, generation
+    # plays 4 x 7 x 30 x 40 x 300 = 10.1 M in about 2 h 35 min (three parts of 47-56 min), ours 0.5 M
+    # in 9 min.
     # Part i's key does not depend on the number of parts: a run with --episodes 40 plays a
     # 30-episode run's parts first.
     "cpu": Scale(preset="cpu", ppo=dict(total_steps=10240), seeds=1, chunk=5, episodes=30, parts=3,
@@ -154,7 +154,7 @@ def _parse(argv=None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="python -m experiments.benchmark2",
                                  description="Benchmark 2 (content generation) of the RaidEnv paper",
                                  formatter_class=HelpFormatter)
-    add_run_arguments(ap, SCALES, "budgets: smoke (minutes), cpu (about 3 h 40 min on 2 cores), "
+    add_run_arguments(ap, SCALES, "budgets: smoke (minutes), cpu (about 7 h 40 min on 2 cores, resumable), "
                       "gpu (one accelerator), paper")
     ap.add_argument("--protocol", choices=sorted(pm.PROTOCOLS), default="paper",
                     help="paper: strict 40-decision episodes measured with eval_games games at every edit, greedy "
@@ -292,7 +292,7 @@ def generation_kwargs(scale: Scale, pr: pm.Protocol, max_edits: int, episodes: i
 
 
 # Wall-clock of a whole run per scale, as measured (docs/results/benchmark2.md); printed before a run starts.
-MEASURED_WALL = {"smoke": "a few minutes"}
+MEASURED_WALL = {"smoke": "a few minutes", "cpu": "7 h 37 min of compute (2026-11-29)"}
 
 
 def planned_games(scale: Scale, pr: pm.Protocol) -> tuple[int, int]:

@@ -208,6 +208,17 @@ def _summary_md(summ: dict, ci: dict, n_boot: int) -> str:
               "recomputed on each (experiments.b2_report.bootstrap).")
 
 
+def kept_skills(gens: dict, threshold: float = 0.1) -> dict:
+    """``gens`` cut to the skills the diversity metric keeps (``|W_t - W_c| < threshold``), the
+    paper's t-SNE figure's points; a method with none is left out."""
+    out = {}
+    for m, g in gens.items():
+        k = np.abs(np.asarray(g["target"]) - np.asarray(g["win_rate"])) < threshold
+        if k.any():
+            out[m] = {f: np.asarray(v)[k] for f, v in g.items()}
+    return out
+
+
 def tsne_figure(gens: dict, seed: int = 0, per_target: int = 300):
     """t-SNE (scikit-learn) of the generated skills (4 parameters min-max scaled by their bounds),
     one joint embedding, one panel per method coloured by target. At most ``per_target`` skills
@@ -353,9 +364,12 @@ def report(run: RunFolder, gens: dict, seed: int = 0, tsne_per_target: int = 300
     run.write_table("summary", _summary_md(summ, ci, n_boot))
     run.save_figure("controllability", controllability_figure(crow), dpi=85)
     run.save_figure("error_vs_diversity", error_vs_diversity_figure(crow, drow), dpi=90)
-    fig, n = tsne_figure(gens, seed, tsne_per_target)
+    kept = kept_skills(gens)  # the paper's figure; a tiny run that kept almost none shows every skill
+    enough = sum(len(g["target"]) for g in kept.values()) >= 5
+    fig, n = tsne_figure(kept if enough else gens, seed, tsne_per_target)
     run.save_figure("tsne", fig, dpi=80)
-    run.log(f"report: t-SNE of {n} skills; mean errors " + ", ".join(
+    run.log(f"report: t-SNE of {n} {'kept' if enough else 'generated (fewer than 5 kept)'} skills; mean errors "
+            + ", ".join(
         f"{m} {s['controllability']['err_mean']:.3f}" for m, s in summ.items()))
     fin = lambda x: None if x is None or not np.isfinite(x) else float(x)
     return {"mean_error": {m: fin(s["controllability"]["err_mean"]) for m, s in summ.items()},

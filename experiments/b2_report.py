@@ -208,7 +208,7 @@ def _summary_md(summ: dict, ci: dict, n_boot: int) -> str:
               "recomputed on each (experiments.b2_report.bootstrap).")
 
 
-def kept_skills(gens: dict, threshold: float = 0.1) -> dict:
+def kept_skills(gens: dict, threshold: float = pm.KEEP_ERROR) -> dict:
     """``gens`` cut to the skills the diversity metric keeps (``|W_t - W_c| < threshold``), the
     paper's t-SNE figure's points; a method with none is left out."""
     out = {}

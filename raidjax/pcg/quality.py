@@ -22,6 +22,8 @@ import numpy as np
 from raidjax.pcg import env
 
 TARGETS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
+# Diversity keeps the skills whose |W_t - W_c| is below this (the paper §5.3, SPEC §11).
+KEEP_ERROR = 0.1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -213,7 +215,7 @@ def first_pc(x: np.ndarray) -> np.ndarray:
     return vt[0]
 
 
-def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, threshold: float = 0.1,
+def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, threshold: float = KEEP_ERROR,
               group_size: int | None = None, seed: int = 1, min_kept: int = 2) -> dict:
     """Diversity (PROTOCOLS.md §11): keep skills with error < ``threshold``, leave out groups that
     kept fewer than ``min_kept``, optionally cut every other group to one size, min-max normalise
@@ -245,9 +247,9 @@ def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, thresh
         raise ValueError(f"min_kept: {min_kept} skills cannot have an SD; use 2 or more")
     skills, errors, groups = np.asarray(skills, float), np.asarray(errors), np.asarray(groups)
     kept = np.flatnonzero(errors < threshold)
-    labels, counts = np.unique(groups[kept], return_counts=True)
-    out = {g: {"n": 0, "kept": int(c), "param_sd": [float("nan")] * skills.shape[1], "pc1_sd": float("nan"),
-               "pc1_own_sd": float("nan")} for g, c in zip(labels.tolist(), counts, strict=True) if c < min_kept}
+    count = dict(zip(*(a.tolist() for a in np.unique(groups[kept], return_counts=True)), strict=True))
+    out = {g: {"n": 0, "kept": c, "param_sd": [float("nan")] * skills.shape[1], "pc1_sd": float("nan"),
+               "pc1_own_sd": float("nan")} for g, c in count.items() if c < min_kept}
     keep = kept[~np.isin(groups[kept], list(out))] if out else kept
     if group_size is not None:
         keep = keep[equal_groups(groups[keep], group_size, seed)]
@@ -261,7 +263,7 @@ def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, thresh
     for g in np.unique(groups[keep]):
         m = groups[keep] == g
         n = int(m.sum())
-        out[g] = {"n": n, "kept": int((groups[kept] == g).sum()),
+        out[g] = {"n": n, "kept": count[g],
                   "param_sd": (xn[m].std(0) if n > 1 else np.full(x.shape[1], np.nan)).tolist(),
                   "pc1_sd": float(proj[m].std()) if n > 1 else float("nan"),
                   "pc1_own_sd": float(((xn[m] - xn[m].mean(0)) @ first_pc(xn[m])).std()) if n > 1 else float("nan")}

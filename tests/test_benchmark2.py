@@ -18,6 +18,7 @@ import pytest
 from fault_inject import run, steps
 from PIL import Image
 
+from experiments import b2_report
 from experiments import benchmark2 as b2
 from raidjax.pcg import quality as pm
 from trainers import checkpoint
@@ -277,6 +278,16 @@ def test_error_vs_diversity_figure_points_legend_and_gaps():
     assert "; 1 (method, target) group lacking a number not shown" in fig.axes[0].get_title()
     assert len(fig.axes[0].get_legend().get_texts()) == 6  # 2 methods x (per target, mean, paper)
     plt.close(fig)
+
+
+def test_the_t_sne_draws_only_the_kept_skills():
+    gens = {"A": {"target": np.array([0.1, 0.5, 0.7]), "win_rate": np.array([0.15, 0.2, 0.61]),
+                  "skill": np.arange(12.0).reshape(3, 4)},
+            "B": {"target": np.array([0.3]), "win_rate": np.array([0.9]), "skill": np.zeros((1, 4))}}
+    kept = b2_report.kept_skills(gens)  # |W_t - W_c| < 0.1: A's first and third; B has none
+    assert list(kept) == ["A"]
+    np.testing.assert_array_equal(kept["A"]["skill"], gens["A"]["skill"][[0, 2]])
+    np.testing.assert_array_equal(kept["A"]["target"], [0.1, 0.7])
 
 
 def test_the_plan_counts_the_games_a_run_plays():

@@ -69,45 +69,70 @@ def skill_targets(state: State, params: Params) -> tuple[jnp.ndarray, jnp.ndarra
 
 
 @lane_function
+def slot_ready(state: State, params: Params, valid: jnp.ndarray) -> jnp.ndarray:
+    """``bool[U, S, ...]``: could each slot start a cast now, casts in progress aside (``free_slot``
+    applies those): a live caster, a slot in use and charged, the mana, a valid target, and standing
+    still for a channel (a cast with ``cast_on_moving = 0``)."""
+    sk = params.skills
+    return (
+        state.alive[:, None]
+        & (sk.in_use > 0)
+        & (state.charges > 0)
+        & (state.mana[:, None] >= sk.cost)
+        & valid
+        & ((sk.cast_on_moving > 0) | ~state.moving[:, None])
+    )
+
+
+@lane_function
+def free_slot(casting: jnp.ndarray, params: Params, s: int) -> jnp.ndarray:
+    """``bool[U, ...]``: do the casts in progress (``casting: bool[U, S, ...]``) let slot ``s`` start one:
+    the slot is not casting, and a cast (a channel) in progress allows it (``cast_on_casting``,
+    ``cast_on_channeling``)."""
+    sk = params.skills
+    on_moving = sk.cast_on_moving > 0
+    busy_cast = any_(casting & on_moving, axis=1)
+    busy_channel = any_(casting & ~on_moving, axis=1)
+    return (~casting[:, s] & (~busy_cast | (sk.cast_on_casting[:, s] > 0))
+            & (~busy_channel | (sk.cast_on_channeling[:, s] > 0)))
+
+
+@lane_function
 def usable_slot(state: State, params: Params, valid: jnp.ndarray, s: int) -> jnp.ndarray:
     """``bool[U, ...]``: can slot ``s`` start a cast now (GAME.md §5, with the casting/channeling rules)?
 
     A cast of a skill with ``cast_on_moving = 0`` is a *channel*; other casts are plain casts.
     """
-    sk = params.skills
-    on_moving = sk.cast_on_moving > 0
-    busy_cast = any_(state.casting & on_moving, axis=1)
-    busy_channel = any_(state.casting & ~on_moving, axis=1)
-    return (
-        state.alive
-        & (sk.in_use[:, s] > 0)
-        & ~state.casting[:, s]
-        & (state.charges[:, s] > 0)
-        & (state.mana >= sk.cost[:, s])
-        & valid[:, s]
-        & (on_moving[:, s] | ~state.moving)
-        & (~busy_cast | (sk.cast_on_casting[:, s] > 0))
-        & (~busy_channel | (sk.cast_on_channeling[:, s] > 0))
-    )
+    return slot_ready(state, params, valid)[:, s] & free_slot(state.casting, params, s)
 
 
 @lane_function
-def start_casts(state: State, params: Params, requested: jnp.ndarray) -> State:
-    """Start the requested casts (``bool[U, S, ...]``) that are usable, slot by slot in order.
+def cast_ready(state: State, params: Params, requested: jnp.ndarray) -> jnp.ndarray:
+    """``bool[U, S, ...]``: the requested casts (and every passive slot) that ``slot_ready`` allows;
+    ``start_casts`` takes them. What a cast in progress changes is left to ``start_casts``, so this
+    reads every slot's parameters once (the caller may put it into memory)."""
+    _, valid = skill_targets(state, params)
+    requested = requested | (params.skills.trigger == TRIGGER_PASSIVE)
+    return requested & slot_ready(state, params, valid)
+
+
+@lane_function
+def start_casts(state: State, params: Params, ready: jnp.ndarray) -> State:
+    """Start the casts ``ready`` (``bool[U, S, ...]``, ``cast_ready``) that the casts in progress allow,
+    slot by slot in order.
 
     Slot order makes "try attack 1, then attack 2" (the boss) and "cast every usable skill"
-    (PT-HR) respect the cast-on-casting rule. Moving casters cancel their channels first.
+    (PT-HR) respect the cast-on-casting rule. Moving casters cancel their channels first;
+    ``cast_ready`` does not read the casts in progress, so it may run before.
     """
     channel = params.skills.cast_on_moving == 0
     state = state.replace(casting=state.casting & ~(channel & state.moving[:, None]))
-    _, valid = skill_targets(state, params)
-    requested = requested | (params.skills.trigger == TRIGGER_PASSIVE)
     cast_time = params.skills.cast_time / haste_factor(params)
     # Columns, stacked where read: an in-place update per slot costs XLA:CPU a copy of the array.
     casting = [state.casting[:, s] for s in range(state.casting.shape[1])]
     left = [state.cast_left[:, s] for s in range(state.casting.shape[1])]
     for s in range(len(casting)):
-        start = requested[:, s] & usable_slot(state.replace(casting=jnp.stack(casting, axis=1)), params, valid, s)
+        start = ready[:, s] & free_slot(jnp.stack(casting, axis=1), params, s)
         casting[s] = casting[s] | start
         left[s] = jnp.where(start, cast_time[:, s], left[s])
     return state.replace(casting=jnp.stack(casting, axis=1), cast_left=jnp.stack(left, axis=1))

@@ -99,7 +99,10 @@ def substep(seeds, state: State, actions, params: Params, sources, n_ticks: int,
         state = lanes.materialize(schedule, movement.update_moving(state, old_pos, dt), since=start)
     with jax.named_scope("casting"):
         before = state
-        state = combat.start_casts(state, params, heuristic.cast_requests(actions, state.casting.shape[1]))
+        # What every slot's parameters allow, read once into memory; the slots then start in order.
+        ready = lanes.computed(schedule, combat.cast_ready, state, params,
+                               heuristic.cast_requests(actions, state.casting.shape[1]))
+        state = combat.start_casts(state, params, ready)
         state = _pause_boss_for_new_cast(state, before, old_pos, params, n_ticks)
         state, fired_tick = lanes.materialize(schedule, combat.advance_casts(state, params, n_ticks), since=before)
     with jax.named_scope("fire"):

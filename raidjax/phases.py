@@ -239,10 +239,10 @@ def _fly_pool(seeds, state: State, params: Params, skills: Effects, spawns: Spaw
 
             def run(carry):
                 pool, total_sums = carry
-                # The block's slots into memory of their own: the pool's buffers are then written in
-                # place with nothing left to read them, and need no copy.
-                new, sums = block(ctx, lanes.materialize(schedule, jax.tree.map(cut, pool)), cut(got),
-                                  cut(ctx[4].src), start)
+                # The block's slots go into memory of their own as operands of spawn's conditional
+                # (lanes.computed in ``block``): the pool's buffers are then written in place with
+                # nothing left to read them (a lanes.materialize of the cut would only copy it again).
+                new, sums = block(ctx, jax.tree.map(cut, pool), cut(got), cut(ctx[4].src), start)
                 pool = jax.tree.map(lambda x, y: jax.lax.dynamic_update_slice_in_dim(x, y, start, 0), pool, new)
                 return pool, total_sums.plus(sums)  # whole points: exact in any order
 

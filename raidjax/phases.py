@@ -219,9 +219,13 @@ def _fly_pool(seeds, state: State, params: Params, skills: Effects, spawns: Spaw
         # stands against each unit (collide), and the flight with its hits.
         seeds, state, params, skills, spawns, unit_cols, running = ctx
         requests = spawns.replace(got=got_b, src=src_b)
-        pb, flight = lanes.computed(schedule, lambda pb: combat.spawn(pb, requests, n_ticks), pb)
+        def spawned(pb):  # with each slot's source entry, which every field of the sources' picks reads
+            pb, flight = combat.spawn(pb, requests, n_ticks)
+            return pb, flight, pb.owner * s_n + pb.slot
+
+        pb, flight, source = lanes.computed(schedule, spawned, pb)
         flight = jnp.where(running, flight, 0.0)
-        feats = lanes.computed(schedule, lambda: damage.pick_effects(skills, pb.owner * s_n + pb.slot))
+        feats = lanes.computed(schedule, lambda: damage.pick_effects(skills, source))
         at = state.replace(projectiles=pb)
         touch = lanes.computed(schedule, damage.touchable, feats, params, state.alive)
         near = lanes.computed(schedule, projectiles.contacts, at, params, feats, unit_cols)

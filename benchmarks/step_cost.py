@@ -10,6 +10,11 @@ CPU-only figure shows what a GPU will do. The decision's program is ``vmap(raidj
 its operation counts are read from the optimised HLO text. The observation is built once per
 decision, outside the sub-steps: its own program (``vmap(raidjax.observe)``) is counted apart.
 
+A decision moves its state into and out of the lane layout once, whatever its sub-step count, so a
+second program runs two sub-steps in a row: what the second adds is a sub-step's own work
+(``substep_own_*``), the rest of the one-sub-step program is the decision's once-only work
+(``decision_once_*``), and ``substep_in_decision_*`` shares it among ``--substeps`` sub-steps.
+
     python benchmarks/step_cost.py --arenas 4096 [--substeps 5|1] [--rules reference|clean]
         [--observation raidjax|reference]
 """
@@ -64,18 +69,31 @@ def main() -> None:
         schedule = lanes.Schedule(first != first + 1) if fast else lanes.PLAIN
         return substep(seeds, state, actions, params, sources, n_ticks, schedule=schedule)
 
-    program = lanes.batched(lane_substep, full=(1,))
+    def lane_two_substeps(seeds, state, actions, params, sources, fast):  # two in a row, as a decision's scan
+        state, _, _ = lane_substep(seeds, state, actions, params, sources, fast)
+        return lane_substep(seeds, state, actions, params, sources, fast)
 
-    def one_substep(key, state, actions, params):
-        return program(dice_seeds(key), state.replace(memory=None), actions, params, damage.effect_sources(params))
+    def program_of(lane_fn):
+        program = lanes.batched(lane_fn, full=(1,))
 
-    sub = jax.jit(jax.vmap(one_substep)).lower(keys, state, actions, batch).compile()
+        def run(key, state, actions, params):
+            return program(dice_seeds(key), state.replace(memory=None), actions, params,
+                           damage.effect_sources(params))
+
+        return jax.jit(jax.vmap(run)).lower(keys, state, actions, batch).compile()
+
+    sub, two = program_of(lane_substep), program_of(lane_two_substeps)
     sources = jax.jit(jax.vmap(damage.effect_sources)).lower(batch).compile()
     table = jax.jit(jax.vmap(damage.effect_table)).lower(batch).compile()
     dec = jax.jit(jax.vmap(raidjax.step)).lower(keys, state, actions, batch).compile()
     obs = jax.jit(jax.vmap(lambda s, p: raidjax.observe(s, p, damage.effect_table(p)))).lower(state, batch).compile()
-    sub_cost, sources_cost, table_cost, obs_cost = cost(sub), cost(sources), cost(table), cost(obs)
+    sub_cost, two_cost, sources_cost, table_cost, obs_cost = cost(sub), cost(two), cost(sources), cost(table), cost(obs)
     n = args.arenas
+    # A sub-step inside a decision: what a second sub-step in a row adds (its own work), plus the
+    # decision's once-only work (the moves into and out of the lane layout, the sources' layout)
+    # shared by its sub-steps.
+    own = {k: two_cost[k] - sub_cost[k] for k in ("bytes", "flops")}
+    once = {k: sub_cost[k] - sources_cost[k] - own[k] for k in ("bytes", "flops")}
     state_bytes = sum(x.dtype.itemsize * x.size for x in jax.tree.leaves(state)) / n
     print(json.dumps({
         "benchmark": "step_cost", "machine": machine(load=True), "arenas": n, "rules": args.rules,
@@ -83,6 +101,10 @@ def main() -> None:
         # The sub-step program also builds the per-decision source rows; they are taken out.
         "substep_bytes_per_arena": round((sub_cost["bytes"] - sources_cost["bytes"]) / n),
         "substep_flops_per_arena": round((sub_cost["flops"] - sources_cost["flops"]) / n),
+        "substep_own_bytes_per_arena": round(own["bytes"] / n),
+        "decision_once_bytes_per_arena": round(once["bytes"] / n),
+        "substep_in_decision_bytes_per_arena": round((own["bytes"] + once["bytes"] / args.substeps) / n),
+        "substep_in_decision_flops_per_arena": round((own["flops"] + once["flops"] / args.substeps) / n),
         # Once per decision: the observation of every player (its effect table taken out likewise).
         "observation_bytes_per_arena": round((obs_cost["bytes"] - table_cost["bytes"]) / n),
         "observation_flops_per_arena": round((obs_cost["flops"] - table_cost["flops"]) / n),

@@ -98,12 +98,14 @@ def free_slot(casting: jnp.ndarray, params: Params, s: int) -> jnp.ndarray:
 
 
 @lane_function
-def usable_slot(state: State, params: Params, valid: jnp.ndarray, s: int) -> jnp.ndarray:
-    """``bool[U, ...]``: can slot ``s`` start a cast now (GAME.md §5, with the casting/channeling rules)?
+def usable_slots(state: State, params: Params, valid: jnp.ndarray) -> jnp.ndarray:
+    """``bool[U, S, ...]``: can each slot start a cast now (GAME.md §5, with the casting/channeling
+    rules)? ``valid``: ``bool[U, S, ...]`` from ``skill_targets``.
 
     A cast of a skill with ``cast_on_moving = 0`` is a *channel*; other casts are plain casts.
     """
-    return slot_ready(state, params, valid)[:, s] & free_slot(state.casting, params, s)
+    free = jnp.stack([free_slot(state.casting, params, s) for s in range(state.casting.shape[1])], axis=1)
+    return slot_ready(state, params, valid) & free
 
 
 @lane_function

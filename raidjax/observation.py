@@ -9,7 +9,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax.combat import haste_factor, skill_targets, usable_slot
+from raidjax.combat import haste_factor, skill_targets, usable_slots
 from raidjax.damage import effect_table, pick_effects, source_index
 from raidjax.reference_observation import ReferenceObservation, observe_reference
 from raidjax.types import CAST_1, HALF_ARENA, HIT_ATTACK, TRIGGER_PASSIVE, Effects, Observation, Params, State
@@ -33,7 +33,7 @@ def action_mask(state: State, params: Params) -> jnp.ndarray:
         return jnp.ones((n_players, params.config.n_actions), bool)
     alive = state.alive[:n_players]
     _, valid = skill_targets(state, params)
-    casts = jnp.stack([usable_slot(state, params, valid, s) for s in range(state.casting.shape[1])], axis=-1)
+    casts = usable_slots(state, params, valid)
     casts = casts & (params.skills.trigger != TRIGGER_PASSIVE)
     move = jnp.broadcast_to(alive[:, None], (n_players, CAST_1))
     move = move.at[:, 0].set(True)  # no-op is always allowed

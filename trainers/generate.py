@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg, policies
+from trainers import draws
 from trainers.config import PPOConfig
 from trainers.ppo_pcgrl import ActorCritic, env_params
 
@@ -87,7 +88,7 @@ def method_policy(families: tuple[tuple[tuple[int, ...], bool], ...], greedy: bo
             o = obs if observes else _without_target(obs, n_params)
             logits = jax.vmap(lambda w, net=net, o=o: net.apply(w, o)[0])(weights)  # [G, n_params, 5]
             logits = jnp.take(logits, episode["group"], axis=0, mode="clip")
-            a = jnp.argmax(logits, -1) if greedy else jax.random.categorical(key, logits)
+            a = jnp.argmax(logits, -1) if greedy else draws.categorical(key, logits)
             actions.append(a.astype(jnp.int32))
         actions.append(pcg.pcg_hr(None, key, obs, state, params))
         actions.append(pcg.pcg_rd(None, key, obs, state, params))

@@ -22,6 +22,7 @@ import numpy as np
 import optax
 
 from raidjax import pcg, policies, xla_flags
+from trainers import draws
 from trainers.config import PPOConfig
 from trainers.gradients import clip_by_global_norm
 from trainers.networks import orthogonal
@@ -151,7 +152,7 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
             obs, st = carry
             ka, ke = jax.random.split(k)
             logits, value = net.apply(params, obs)
-            action = jax.random.categorical(ka, logits).astype(jnp.int32)
+            action = draws.categorical(ka, logits).astype(jnp.int32)
             logp, _ = _logp_entropy(logits, action)
             obs2, st2, r, done, info = jax.vmap(lambda kk, s, a: pcg.step_autoreset(kk, s, a, p))(
                 jax.random.split(ke, config.n_arenas), st, action)
@@ -232,7 +233,7 @@ def make_generator_policy(hidden: tuple, greedy: bool = False, n_params: int = p
 
     def policy(net_params, key, obs, state, params):
         logits, _ = net.apply(net_params, obs)
-        action = jnp.argmax(logits, -1) if greedy else jax.random.categorical(key, logits)
+        action = jnp.argmax(logits, -1) if greedy else draws.categorical(key, logits)
         return action.astype(jnp.int32)
 
     return policy

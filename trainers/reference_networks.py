@@ -40,6 +40,7 @@ import jax.numpy as jnp
 
 from raidjax.reference_observation import ReferenceObservation
 from raidjax.types import Observation
+from trainers import draws
 from trainers.networks import NEG, masked_logits
 
 ATTENTION_WIDTH = 128  # ObservationEncoder.ATTENTION_EMBEDDING_SIZE: fixed in ML-Agents
@@ -47,13 +48,13 @@ ATTENTION_WIDTH = 128  # ObservationEncoder.ATTENTION_EMBEDDING_SIZE: fixed in M
 
 def small_normal(width: int):
     """ML-Agents' ``Initialization.Normal`` with gain √(0.125 / width) (the T-Fixup scheme)."""
-    return nn.initializers.normal(stddev=(0.125 / width) ** 0.5)
+    return draws.normal_init((0.125 / width) ** 0.5)
 
 
 def kaiming(gain: float = 1.0):
     """ML-Agents' ``KaimingHeNormal`` as ``linear_layer`` calls it (``nonlinearity="linear"``):
     normal with standard deviation ``gain / √fan_in``."""
-    return nn.initializers.variance_scaling(gain ** 2, "fan_in", "normal")
+    return draws.variance_scaling(gain ** 2, "fan_in", "normal")
 
 
 def swish_dense(x: jax.Array, width: int, init, dtype, name: str | None = None) -> jax.Array:
@@ -168,7 +169,7 @@ class ReferenceCritic(nn.Module):
         self.body = [nn.Dense(h, kernel_init=kaiming((0.125 / h) ** 0.5), dtype=dt) for _ in range(self.layers)]
         # One head for the value and the baselines, as ML-Agents' POCAValueNetwork.value_heads (poca/
         # optimizer_torch.py 61-62): they differ only in their inputs.
-        self.head = nn.Dense(1, kernel_init=nn.initializers.xavier_uniform(), dtype=dt)
+        self.head = nn.Dense(1, kernel_init=draws.xavier_uniform(), dtype=dt)
 
     def _head(self, pooled: jax.Array, mask: jax.Array, head) -> jax.Array:
         x = pooled

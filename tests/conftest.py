@@ -14,15 +14,6 @@ os.environ.setdefault("JAX_COMPILATION_CACHE_DIR",
                       str(Path(__file__).resolve().parent.parent / ".pytest_cache" / "jax_compilation_cache"))
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES", "0")
-# The suite compiles with LLVM at optimisation level 0 instead of XLA:CPU's default 2: most of its
-# time is compiling programs it then runs for a few decisions, and a level-0 compile takes about 40 %
-# less CPU time (the 64-game PT-HR playtest: 3.95 -> 2.46 s) while the program runs about 5x slower.
-# Level 0 rounds floats differently from program to program, so the tests that compare the bits of
-# two programs (the golden games, vmapped vs single arenas, sharded vs one device, a policy with
-# weights vs the bound one) compile those at ``helpers.OPTIMIZED`` (level 1: the bits of the default
-# level 2 that users run).
-if "--xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} --xla_backend_optimization_level=0".strip()
 
 import pytest  # noqa: E402
 from hypothesis import HealthCheck, settings  # noqa: E402

@@ -12,7 +12,6 @@ Expected numbers in the tests are derived by hand from docs/GAME.md, never copie
 from __future__ import annotations
 
 import math
-import os
 
 import chex
 import jax
@@ -40,33 +39,9 @@ PASSIVE_BOSS = {"move_speed": 0.0, "skill1.range": 1.0, "skill2.range": 1.0}
 
 __all__ = [
     "ACTION_HEURISTIC", "BOSS", "CAST_1", "CLEAN1", "DT", "DRAG", "KEY", "NOOP", "P", "PASSIVE_BOSS", "RESET",
-    "OPTIMIZED", "STEP", "TICK", "T_ROLL", "acts", "events", "make", "optimized", "rollout", "run", "scenario",
+    "STEP", "TICK", "T_ROLL", "acts", "events", "make", "rollout", "run", "scenario",
     "series",
 ]
-
-
-# Programs whose bits a test compares with another program's compile at LLVM level 1 (conftest.py
-# compiles the rest at level 0, which rounds differently from program to program): levels 1 and 2
-# (XLA's default, what users run) give the same bits, the golden games' among them.
-OPTIMIZED = {"xla_backend_optimization_level": 1}
-
-
-def optimized(fn, *args):
-    """``jax.jit(fn)(*args)``, compiled at ``OPTIMIZED`` (``fn`` closes over any static argument)."""
-    return jax.jit(fn).lower(*args).compile(OPTIMIZED)(*args)
-
-
-def xla_flags_at(level: int) -> str:
-    """This process's ``XLA_FLAGS`` with the LLVM optimisation level set to ``level``, for a child
-    process: 1 for children that play thousands of games (a level-0 program runs about 5x slower)."""
-    flags = [f for f in os.environ.get("XLA_FLAGS", "").split() if not f.startswith("--xla_backend_optimization_level")]
-    return " ".join([*flags, f"--xla_backend_optimization_level={level}"])
-
-
-def suite_opt_level() -> list[str]:
-    """The suite's XLA optimisation level (``conftest.py``) as a list of ``XLA_FLAGS`` items, for
-    child processes that set their own ``XLA_FLAGS``."""
-    return [f for f in os.environ.get("XLA_FLAGS", "").split() if f.startswith("--xla_backend_optimization_level")]
 
 
 def make(passive_boss: bool = True, boss_overrides: dict | None = None, **kw) -> raidjax.Params:

@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import ACTION_HEURISTIC, CAST_1, NOOP, acts, optimized, run, scenario
+from helpers import ACTION_HEURISTIC, CAST_1, NOOP, acts, run, scenario
 
 import raidjax
 from raidjax import lanes
@@ -213,14 +213,13 @@ def test_batched_runs_the_lane_function_once_on_the_lanes():
 def test_vmapped_step_equals_single_steps_bit_for_bit():
     contents, states, actions = _fights()
     keys = jax.random.split(jax.random.key(4), 4)
-    # Programs compared bit for bit compile at helpers.OPTIMIZED (the suite's level 0 rounds apart).
-    single = [optimized(raidjax.step, keys[i], states[i], actions[i], contents[i]) for i in range(4)]
+    single = [jax.jit(raidjax.step)(keys[i], states[i], actions[i], contents[i]) for i in range(4)]
     # The step exercises what it should: the players' only damage is their instant missiles in the
     # second arena and their basic attacks in the fourth (their missiles do none: spell power 0).
     assert float(single[1][4]["damage_dealt"].sum()) > 0
     assert float(single[3][4]["damage_dealt"].sum()) > 0
     # On the host: indexing device arrays would compile a slice program per leaf and arena.
-    out = jax.device_get(optimized(jax.vmap(raidjax.step), keys, stacked(states), actions, stacked(contents)))
+    out = jax.device_get(jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked(contents)))
     for i in range(4):
         mine = jax.tree.map(lambda x, i=i: x[i], out)
         assert_equal(mine[1:], single[i][1:])  # state, reward, done, info: bit for bit
@@ -229,8 +228,8 @@ def test_vmapped_step_equals_single_steps_bit_for_bit():
         for x, y in zip(jax.tree.leaves(mine[0]), jax.tree.leaves(single[i][0]), strict=True):
             np.testing.assert_allclose(np.asarray(x, np.float32), np.asarray(y, np.float32), rtol=0, atol=1e-6)
     # One content shared by every arena (params unbatched: it broadcasts along the lanes).
-    shared = optimized(jax.vmap(raidjax.step, (0, 0, 0, None)), keys, stacked(states), actions, contents[0])
-    per_arena = optimized(jax.vmap(raidjax.step), keys, stacked(states), actions, stacked([contents[0]] * 4))
+    shared = jax.jit(jax.vmap(raidjax.step, (0, 0, 0, None)))(keys, stacked(states), actions, contents[0])
+    per_arena = jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked([contents[0]] * 4))
     assert_equal(shared[1:], per_arena[1:])
 
 
@@ -240,10 +239,10 @@ def test_nested_vmap_equals_the_flat_one():
     compilation cache)."""
     contents, states, actions = _fights()
     keys = jax.random.split(jax.random.key(5), 4)
-    flat = optimized(jax.vmap(raidjax.step), keys, stacked(states), actions, stacked(contents))
+    flat = jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked(contents))
     nest = lambda t: jax.tree.map(lambda x: x.reshape((2, 2) + x.shape[1:]), t)  # noqa: E731
-    nested = optimized(jax.vmap(jax.vmap(raidjax.step)), nest(keys), nest(stacked(states)), nest(actions),
-                       nest(stacked(contents)))
+    nested = jax.jit(jax.vmap(jax.vmap(raidjax.step)))(nest(keys), nest(stacked(states)), nest(actions),
+                                                        nest(stacked(contents)))
     assert_equal(jax.tree.map(lambda x: x.reshape((4,) + x.shape[2:]), nested)[1:], flat[1:])
     # The groups' arenas are lanes of one lane program, which keeps the conditionals that skip work
     # no arena needs (lanes.if_any; on XLA:CPU): as many as the flat program's.

@@ -17,8 +17,6 @@ NOTEBOOKS = ROOT / "notebooks"
 def execute(name: str, monkeypatch: pytest.MonkeyPatch, **env: str):
     """Run ``notebooks/<name>`` in a fresh ``python3`` kernel from the repository root; return it."""
     monkeypatch.setenv("RAIDJAX_SMOKE", "1")
-    # Smoke sizes run in milliseconds and compiling dominates: the kernel inherits the suite's
-    # XLA_FLAGS (conftest.py: LLVM level 0).
     for k, v in env.items():
         monkeypatch.setenv(k, v)
     nb = nbformat.read(NOTEBOOKS / name, as_version=4)

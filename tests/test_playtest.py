@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import ACTION_HEURISTIC, RESET, optimized
+from helpers import ACTION_HEURISTIC, RESET
 
 import raidjax
 from raidjax import policies
@@ -36,14 +36,6 @@ def stack(*trees):
 @pytest.fixture(scope="module")
 def reference_results(ref_params):
     return jax.device_get(raidjax.playtest(jax.random.key(0), ref_params, policies.heuristic, **GAMES))
-
-
-@pytest.fixture(scope="module")
-def optimized_reference(ref_params):
-    """The fixture's games from a program compiled at ``helpers.OPTIMIZED``, for the tests that compare
-    another program's games with them bit for bit (the suite's level 0 rounds programs apart)."""
-    return jax.device_get(optimized(lambda k: raidjax.playtest(k, ref_params, policies.heuristic, **GAMES),
-                                    jax.random.key(0)))
 
 
 def test_reference_playtest_results_are_consistent(reference_results):
@@ -158,7 +150,7 @@ def test_heuristic_and_noop_policies(ref_params):
     assert policies.noop(jax.random.key(0), obs, s, ref_params).tolist() == [0, 0, 0]
 
 
-def test_script_and_or_heuristic_choose_their_team_by_data_in_one_program(ref_params, optimized_reference):
+def test_script_and_or_heuristic_choose_their_team_by_data_in_one_program(ref_params, reference_results):
     """``policies.script`` (index 0: PT-HR, 1: PT-RD) and ``policies.OrHeuristic`` (a policy with
     weights, or PT-HR) choose by a traced argument: decision by decision they return the chosen
     team's actions, and ``OrHeuristic(script)`` plays the fixture's PT-HR games game for game when
@@ -181,11 +173,11 @@ def test_script_and_or_heuristic_choose_their_team_by_data_in_one_program(ref_pa
                                                   weights=both.weights(jnp.int32(1), False)))
     assert _playtest._cache_size() == before + 1
     assert not np.array_equal(random_team["length"], scripted["length"])  # PT-RD's games are not PT-HR's
-    # The same team's games from an optimised program, compared bit for bit with the fixture's.
-    scripted_bits = jax.device_get(optimized(lambda k, w: raidjax.playtest(k, ref_params, both, weights=w, **GAMES),
+    # The same team's games from a jitted program, compared bit for bit with the fixture's.
+    scripted_bits = jax.device_get(jax.jit(lambda k, w: raidjax.playtest(k, ref_params, both, weights=w, **GAMES))(
                                              jax.random.key(0), both.weights(jnp.int32(1), True)))
     for name in scripted_bits:
-        np.testing.assert_array_equal(scripted_bits[name], optimized_reference[name], err_msg=name)
+        np.testing.assert_array_equal(scripted_bits[name], reference_results[name], err_msg=name)
 
 
 def test_playtest_accepts_raw_and_typed_keys(ref_params, reference_results):
@@ -223,7 +215,7 @@ def switched(weights, key, obs, state, params):
     return jnp.where(weights["on"], policies.heuristic(key, obs, state, params), policies.noop(key, obs, state, params))
 
 
-def test_policy_with_weights_plays_as_bound_and_compiles_once(ref_params, optimized_reference):
+def test_policy_with_weights_plays_as_bound_and_compiles_once(ref_params, reference_results):
     from raidjax.playtest import _playtest
 
     before = _playtest._cache_size()
@@ -232,10 +224,10 @@ def test_policy_with_weights_plays_as_bound_and_compiles_once(ref_params, optimi
     assert (off["damage"] == 0).all() and (off["outcome"] != 1).all()  # a team standing still hurts nobody
     assert (on["damage"] > 0).any()
     assert _playtest._cache_size() == before + 1  # the second weights reused the program
-    on_bits = jax.device_get(optimized(lambda k, w: raidjax.playtest(k, ref_params, switched, weights=w, **GAMES),
+    on_bits = jax.device_get(jax.jit(lambda k, w: raidjax.playtest(k, ref_params, switched, weights=w, **GAMES))(
                                        jax.random.key(0), {"on": jnp.bool_(True)}))
     for name in on_bits:  # the fixture's plain PT-HR games, game for game (both programs optimised)
-        np.testing.assert_array_equal(on_bits[name], optimized_reference[name], err_msg=name)
+        np.testing.assert_array_equal(on_bits[name], reference_results[name], err_msg=name)
     # record_episode with weights equals the bound policy too.
     key = jax.random.key(3)
     trace_w, _ = raidjax.logs.record_episode(key, LOSS, switched, 12, weights={"on": jnp.bool_(True)})

@@ -15,7 +15,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from helpers import suite_opt_level
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -29,17 +28,15 @@ from trainers.config import load_config
 from trainers.mapoca import make_trainer
 cfg = raidjax.EnvConfig.from_rules("reference", max_decisions=300)
 p = raidjax.make_params(skill_range=13.0, config=cfg)
-opt = {"xla_backend_optimization_level": 1}  # compared bit for bit: optimised programs (helpers.OPTIMIZED)
 key = jax.random.key(0)
-r = jax.jit(lambda k: raidjax.playtest(k, p, raidjax.policies.heuristic, 64)).lower(key).compile(opt)(key)
-occ = jax.jit(lambda k: raidjax.playtest_occupancy(k, p, raidjax.policies.heuristic, 64)).lower(key).compile(opt)(key)
+r = jax.jit(lambda k: raidjax.playtest(k, p, raidjax.policies.heuristic, 64))(key)
+occ = jax.jit(lambda k: raidjax.playtest_occupancy(k, p, raidjax.policies.heuristic, 64))(key)
 tcfg = load_config("cpu", n_arenas=4, n_steps=4, n_minibatches=2, update_epochs=1, hidden=8, layers=1, heads=2,
                    updates_per_chunk=2, total_steps=32)
 trainer = make_trainer(tcfg)
-fast = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}  # floats compared to 1e-4
 keys = jax.random.split(jax.random.PRNGKey(0), 4)
-runner = put_batch(jax.jit(jax.vmap(trainer.init)).lower(keys).compile(fast)(keys), 4)
-runner, metrics = jax.jit(jax.vmap(trainer.chunk)).lower(runner).compile(fast)(runner)
+runner = put_batch(jax.jit(jax.vmap(trainer.init))(keys), 4)
+runner, metrics = jax.jit(jax.vmap(trainer.chunk))(runner)
 print(len(r["outcome"].sharding.device_set), len(occ.sharding.device_set),
       len(jax.tree.leaves(runner)[0].sharding.device_set), batch_sharding(6) is None)
 np.savez(sys.argv[1] + "_playtest.npz", occ=np.asarray(occ), **{k: np.asarray(v) for k, v in r.items()})
@@ -49,7 +46,7 @@ np.savez(sys.argv[1] + "_mapoca.npz", *[np.asarray(x) for x in jax.tree.leaves((
 
 def run(code: str, out: Path, devices: int) -> str:
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
-    flags = suite_opt_level()  # the child adds raidjax's flags itself
+    flags = []  # the child adds raidjax's flags itself
     if devices > 1:
         flags.append(f"--xla_force_host_platform_device_count={devices}")
     env["XLA_FLAGS"] = " ".join(flags)

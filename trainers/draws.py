@@ -7,7 +7,7 @@ shape compiles many times slower than a draw of the same number of values as a v
 jax 0.10.2): the counter behind each value is built from one index per axis, and the classic
 emitters unroll that. A learner draws its initial weights (a matrix per layer, vmapped over
 seeds) and its sampled actions (``[arenas, players, actions]``) in every program it compiles:
-drawing them flat took a MA-POCA trainer's ``init`` from 5.2 s to 3.1 s of compiling.
+drawing them flat took a 2-seed MA-POCA trainer's ``init`` from 5.2 s to 3.4 s of compiling.
 
 The numbers are the same bit for bit: JAX's threefry gives the value at index ``(i, j)`` of a
 ``(H, W)`` draw the counter ``i * W + j``, the flat draw's counter at ``i * W + j`` (both with

@@ -50,3 +50,42 @@ def test_bad_mode_or_distribution_is_named():
         draws.variance_scaling(1.0, "fan_geo", "normal")
     with pytest.raises(ValueError, match="distribution: value 'cauchy'"):
         draws.variance_scaling(1.0, "fan_in", "cauchy")
+
+
+def _draw_shapes(jaxpr) -> list[tuple]:
+    """The shapes of every ``random_bits`` in ``jaxpr`` and its sub-jaxprs."""
+    shapes = []
+    for e in jaxpr.eqns:
+        if e.primitive.name == "random_bits":
+            shapes.append(e.outvars[0].aval.shape)
+        for v in e.params.values():
+            for sub in v if isinstance(v, (list, tuple)) else [v]:
+                inner = getattr(sub, "jaxpr", sub)
+                if hasattr(inner, "eqns"):
+                    shapes += _draw_shapes(inner)
+    return shapes
+
+
+@pytest.mark.parametrize("network, senses", [("raidjax", "raidjax"), ("reference", "reference")])
+def test_the_networks_draw_flat(network, senses):
+    """Every draw of the networks' initial weights (2 seeds vmapped, as the trainers run them) and of
+    a sampled action is one vector per seed: a layer left at flax's default initialiser, or a
+    ``jax.random`` call on a matrix, draws a ``[seeds, rows, columns]`` block and fails here."""
+    import raidjax
+    from trainers.config import PRESETS
+    from trainers.mapoca import make_networks
+    from trainers.networks import sample_actions
+
+    cfg = PRESETS["mapoca"]["cpu"].replace(network=network, senses=senses, hidden=8, layers=1,
+                                           heads=4 if network == "reference" else 2)
+    actor, critic = make_networks(cfg)
+    params = raidjax.make_params(observation=senses, action_space=senses)
+    shapes_only, _ = jax.eval_shape(raidjax.reset, jax.random.key(0), params)
+    obs = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes_only)  # traced below, never run
+    init = lambda k: (actor.init(k, obs), critic.init(k, obs, jnp.zeros(obs.alive.shape, jnp.int32)))  # noqa: E731
+    shapes = _draw_shapes(jax.make_jaxpr(jax.vmap(init))(KEYS[:2]).jaxpr)
+    logits = jnp.zeros((2, 16, 3, obs.action_mask.shape[-1]))
+    alive = jnp.ones((2, 16, 3), bool)
+    shapes += _draw_shapes(jax.make_jaxpr(jax.vmap(lambda k, x, a: sample_actions(k, x, a)))(KEYS[:2], logits,
+                                                                                           alive).jaxpr)
+    assert len(shapes) > 5 and all(len(s) <= 2 for s in shapes), shapes

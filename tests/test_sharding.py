@@ -29,8 +29,8 @@ from trainers.mapoca import make_trainer
 cfg = raidjax.EnvConfig.from_rules("reference", max_decisions=300)
 p = raidjax.make_params(skill_range=13.0, config=cfg)
 key = jax.random.key(0)
-r = jax.jit(lambda k: raidjax.playtest(k, p, raidjax.policies.heuristic, 64))(key)
-occ = jax.jit(lambda k: raidjax.playtest_occupancy(k, p, raidjax.policies.heuristic, 64))(key)
+r = raidjax.playtest(key, p, raidjax.policies.heuristic, 64)
+occ = raidjax.playtest_occupancy(key, p, raidjax.policies.heuristic, 64)
 tcfg = load_config("cpu", n_arenas=4, n_steps=4, n_minibatches=2, update_epochs=1, hidden=8, layers=1, heads=2,
                    updates_per_chunk=2, total_steps=32)
 trainer = make_trainer(tcfg)
@@ -46,10 +46,8 @@ np.savez(sys.argv[1] + "_mapoca.npz", *[np.asarray(x) for x in jax.tree.leaves((
 
 def run(code: str, out: Path, devices: int) -> str:
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
-    flags = []  # the child adds raidjax's flags itself
-    if devices > 1:
-        flags.append(f"--xla_force_host_platform_device_count={devices}")
-    env["XLA_FLAGS"] = " ".join(flags)
+    # The child adds raidjax's flags itself.
+    env["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={devices}" if devices > 1 else ""
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
     done = subprocess.run([sys.executable, "-c", code, str(out)], env=env, capture_output=True, text=True,
                           timeout=600, cwd=ROOT)

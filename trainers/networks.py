@@ -18,6 +18,7 @@ cannot tell a dead player from "no player" and can never mistake zeros for a liv
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import flax.linen as nn
@@ -30,8 +31,9 @@ from raidjax.types import Observation
 from trainers import draws
 
 NEG = -1e9  # additive mask for logits/attention (finite: an all-masked row stays NaN-free)
-# flax Dense's default kernel initialiser, drawn flat (trainers.draws: the same numbers, a faster compile)
-LECUN = draws.lecun_normal()
+# flax's Dense with its default kernel initialiser drawn flat (trainers.draws: the same numbers, a
+# faster compile); every layer here that does not choose its own initialiser is one of these.
+Dense = functools.partial(nn.Dense, kernel_init=draws.lecun_normal())
 
 
 def orthogonal(scale: float = 1.0):
@@ -91,8 +93,8 @@ class ResidualSelfAttention(nn.Module):
 
     def setup(self):
         self.norm = nn.LayerNorm(dtype=self.dtype)
-        self.qkv = nn.Dense(3 * self.features, kernel_init=LECUN, dtype=self.dtype)
-        self.out = nn.Dense(self.features, kernel_init=LECUN, dtype=self.dtype)
+        self.qkv = Dense(3 * self.features, dtype=self.dtype)
+        self.out = Dense(self.features, dtype=self.dtype)
 
     def project(self, x: jax.Array) -> jax.Array:
         """Per-token ``qkv: [..., N, 3, heads, H / heads]``."""
@@ -126,7 +128,7 @@ class MLP(nn.Module):
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         for _ in range(self.layers):
-            x = nn.relu(nn.Dense(self.hidden, kernel_init=LECUN, dtype=self.dtype)(x))
+            x = nn.relu(Dense(self.hidden, dtype=self.dtype)(x))
         return x
 
 
@@ -161,8 +163,8 @@ class Actor(nn.Module):
         n_actions = obs.action_mask.shape[-1]
         if isinstance(obs, ReferenceObservation):
             flat = jnp.concatenate([obs.projectile_rays, obs.wall_rays, obs.stack], axis=-1)
-            ctx = nn.Dense(h, use_bias=False, kernel_init=LECUN, dtype=dt, name="self_ctx")(flat)[..., None, :]
-            ents = nn.relu(nn.Dense(h, kernel_init=LECUN, dtype=dt, name="mate_emb")(obs.teammates) + ctx)
+            ctx = Dense(h, use_bias=False, dtype=dt, name="self_ctx")(flat)[..., None, :]
+            ents = nn.relu(Dense(h, dtype=dt, name="mate_emb")(obs.teammates) + ctx)
             pooled = ResidualSelfAttention(h, self.heads, dt, name="rsa")(ents, obs.teammate_mask)
             x = MLP(h, self.layers, dt, name="body")(jnp.concatenate([flat.astype(pooled.dtype), pooled], axis=-1))
             logits = nn.Dense(n_actions, kernel_init=orthogonal(0.01), dtype=dt, name="pi")(x)
@@ -171,13 +173,13 @@ class Actor(nn.Module):
         if not self.proj_attention:
             lead = obs.projectile_mask.shape
             self_parts += [obs.projectiles.reshape(*lead[:-1], -1), obs.projectile_mask.astype(jnp.float32)]
-        s = nn.relu(nn.Dense(h, kernel_init=LECUN, dtype=dt, name="self_enc")(jnp.concatenate(self_parts, axis=-1)))
+        s = nn.relu(Dense(h, dtype=dt, name="self_enc")(jnp.concatenate(self_parts, axis=-1)))
         # Entity embeddings see the self encoding (as ML-Agents' EntityEmbedding does).
-        ctx = nn.Dense(h, use_bias=False, kernel_init=LECUN, dtype=dt, name="self_ctx")(s)[..., None, :]
-        ents = nn.relu(nn.Dense(h, kernel_init=LECUN, dtype=dt, name="mate_emb")(obs.teammates) + ctx)
+        ctx = Dense(h, use_bias=False, dtype=dt, name="self_ctx")(s)[..., None, :]
+        ents = nn.relu(Dense(h, dtype=dt, name="mate_emb")(obs.teammates) + ctx)
         mask = obs.teammate_mask
         if self.proj_attention:
-            projs = nn.relu(nn.Dense(h, kernel_init=LECUN, dtype=dt, name="proj_emb")(obs.projectiles) + ctx)
+            projs = nn.relu(Dense(h, dtype=dt, name="proj_emb")(obs.projectiles) + ctx)
             ents = jnp.concatenate([ents, projs], axis=-2)
             mask = jnp.concatenate([mask, obs.projectile_mask], axis=-1)
         pooled = ResidualSelfAttention(h, self.heads, dt, name="rsa")(ents, mask)
@@ -215,12 +217,12 @@ class Critic(nn.Module):
 
     def setup(self):
         dt = self.dtype
-        self.obs_emb = nn.Dense(self.hidden, kernel_init=LECUN, dtype=dt)
-        self.obs_act_emb = nn.Dense(self.hidden, kernel_init=LECUN, dtype=dt)
+        self.obs_emb = Dense(self.hidden, dtype=dt)
+        self.obs_act_emb = Dense(self.hidden, dtype=dt)
         self.rsa = ResidualSelfAttention(self.hidden, self.heads, dt)
         self.body = MLP(self.hidden, self.layers, dt)
-        self.value_head = nn.Dense(1, kernel_init=LECUN, dtype=dt)
-        self.baseline_head = nn.Dense(1, kernel_init=LECUN, dtype=dt)
+        self.value_head = Dense(1, dtype=dt)
+        self.baseline_head = Dense(1, dtype=dt)
 
     def _head(self, pooled: jax.Array, mask: jax.Array, head) -> jax.Array:
         count = jnp.sum(mask, axis=-1, keepdims=True).astype(pooled.dtype) / mask.shape[-1]

@@ -35,17 +35,17 @@ def _flat(shape) -> tuple[int]:
 
 
 def normal(key: jax.Array, shape, dtype=jnp.float32) -> jax.Array:
-    """``jax.random.normal(key, shape, dtype)``."""
+    """``jax.random.normal(key, shape, dtype)``: ``dtype[shape]``."""
     return jax.random.normal(key, _flat(shape), dtype).reshape(shape)
 
 
 def uniform(key: jax.Array, shape, dtype=jnp.float32, minval=0.0, maxval=1.0) -> jax.Array:
-    """``jax.random.uniform(key, shape, dtype, minval, maxval)`` (scalar bounds)."""
+    """``jax.random.uniform(key, shape, dtype, minval, maxval)`` (scalar bounds): ``dtype[shape]``."""
     return jax.random.uniform(key, _flat(shape), dtype, minval, maxval).reshape(shape)
 
 
 def truncated_normal(key: jax.Array, lower, upper, shape, dtype=jnp.float32) -> jax.Array:
-    """``jax.random.truncated_normal(key, lower, upper, shape, dtype)`` (scalar bounds)."""
+    """``jax.random.truncated_normal(key, lower, upper, shape, dtype)`` (scalar bounds): ``dtype[shape]``."""
     return jax.random.truncated_normal(key, lower, upper, _flat(shape), dtype).reshape(shape)
 
 

@@ -88,9 +88,10 @@ def train_variant(rf: RunFolder, cfg: Config, inputs, n_runs: int) -> dict:
 
     def row(m: dict) -> dict:
         win = np.asarray(m["wins"]) / np.maximum(np.asarray(m["episodes"]), 1)
-        ent = np.asarray(m["entropy"])
+        ent, kl = np.asarray(m["entropy"]), np.asarray(m["approx_kl"])
         return {**{f"win/{i}": float(w) for i, w in enumerate(win)}, **{f"entropy/{i}": float(e) for i, e in
-                                                                       enumerate(ent)}}
+                                                                       enumerate(ent)},
+                **{f"kl/{i}": float(k) for i, k in enumerate(kl)}}
 
     describe = lambda r: "training win " + " ".join(f"{r[k]:.2f}" for k in r if k.startswith("win/"))
     learner = mapoca_learner(trainer, inputs, n_runs, row=row, describe=describe)

@@ -223,8 +223,14 @@ def stage_train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, m
         members = [runs[i] for i in idx]
 
         def row(m: dict, members=members) -> dict:
+            # Beside each run's training win rate, its policy's entropy and the mean approximate KL of
+            # its updates: a team can lose its play in one update (benchmark1.md, "ten and
+            # thirty-five updates before the end").
             win = m["wins"] / np.maximum(m["episodes"], 1)
-            return {f"win/{r['name']}/{r['seed']}": float(w) for r, w in zip(members, win, strict=True)}
+            names = [f"{r['name']}/{r['seed']}" for r in members]
+            return {**{f"win/{n}": float(w) for n, w in zip(names, win, strict=True)},
+                    **{f"entropy/{n}": float(e) for n, e in zip(names, m["entropy"], strict=True)},
+                    **{f"kl/{n}": float(k) for n, k in zip(names, m["approx_kl"], strict=True)}}
 
         learner = mapoca_learner(trainer, _run_inputs(members, base_seed, idx[0]), len(members), row=row,
                                  describe=_training_wins)

@@ -42,7 +42,12 @@ def test_interrupted_run_resumes_mid_training(run):
         assert [json.loads(s)["chunk"] for s in rows] == [0, 1]  # one row per chunk, none lost or repeated
     merged = _rows(out / "train" / "metrics.csv")  # the groups side by side, every run's column
     runs = benchmark1.runs_of(benchmark1.SCALES["smoke"])
-    assert len(merged) == 2 and {f"win/{r['name']}/{r['seed']}" for r in runs} <= set(merged[0])
+    assert len(merged) == 2 and {f"{m}/{r['name']}/{r['seed']}" for r in runs for m in ("win", "entropy", "kl")} <= set(
+        merged[0])
+    # a policy of 8 actions: entropy in (0, ln 8]; the updates moved it (KL not 0)
+    entropy = [float(merged[0][f"entropy/{r['name']}/{r['seed']}"]) for r in runs]
+    assert all(0 < e <= np.log(8) + 1e-5 for e in entropy)
+    assert any(float(merged[1][f"kl/{r['name']}/{r['seed']}"]) != 0 for r in runs)
     assert summary["train"]["decisions_per_run"] == 256 and summary["train"]["groups"] == 2
     assert [list(g) for g in benchmark1.groups_of(10, 4)] == [[0, 1, 2, 3], [4, 5, 6, 7], [8, 9]]
 

@@ -51,6 +51,11 @@ VARIANTS = {
     "agent_rows": ("+ minibatches of 256 agent experiences, 96 per epoch (row 10)", _AGENT_ROWS),
     "network": ("+ ML-Agents' networks, hidden 64, 4 heads (rows 11-15)",
                 {**_AGENT_ROWS, "network": "reference", "heads": 4}),
+    # Not a reference row (the reference's yaml keeps the rate constant): the preset's choice with a
+    # learning rate that decays to 0 over the run, against a team undone by one late update
+    # (docs/results/benchmark1.md, "ten and thirty-five updates before the end").
+    "lr_annealed": ("today's ends with the learning rate decayed linearly to 0 over the run (not a reference row)",
+                    {"episode_ends": "terminal", "anneal_lr": True}),
     # Not a row added: the reference trainer whole, at the paper's budget unless --total-steps says
     # otherwise (about 10 h per run on a 2-core CPU; docs/results/speed.md, "The learner").
     "paper": ("the `paper` preset: every row, the reference buffer (11 arenas x 256 decisions), batch and "

@@ -61,6 +61,8 @@ VARIANTS = {
     "paper": ("the `paper` preset: every row, the reference buffer (11 arenas x 256 decisions), batch and "
               "2 x 256 networks, 16.7 M decisions per run", None),
 }
+# Variants that are not the reference trainer's rows added in turn (the rows before them add up).
+NOT_ROWS = ("lr_annealed", "paper")
 CPU_BUDGET = 1_500_000  # decisions per run of the variants on the cpu preset
 
 

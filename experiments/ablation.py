@@ -34,7 +34,7 @@ from trainers.config import PRESETS, Config
 from trainers.curriculum import RANGE_TABLE, range_table
 from trainers.mapoca import make_trainer
 from trainers.runfolder import RunFolder, markdown_table
-from trainers.runs import mapoca_learner
+from trainers.runs import mapoca_learner, per_run_columns
 
 _REFERENCE_ENDS = {"episode_ends": "reference"}
 _OPTIMISER = {**_REFERENCE_ENDS, "ent_coef": 0.01, "adam_eps": 1e-8, "max_grad_norm": 0.0}
@@ -93,13 +93,7 @@ def train_variant(rf: RunFolder, cfg: Config, inputs, n_runs: int) -> dict:
     """Train the variant's runs in one vmapped program (checkpoints in ``rf``); timing figures."""
     trainer = make_trainer(cfg, redraw_ranges=True)
 
-    def row(m: dict) -> dict:
-        win = np.asarray(m["wins"]) / np.maximum(np.asarray(m["episodes"]), 1)
-        ent, kl = np.asarray(m["entropy"]), np.asarray(m["approx_kl"])
-        return {**{f"win/{i}": float(w) for i, w in enumerate(win)}, **{f"entropy/{i}": float(e) for i, e in
-                                                                       enumerate(ent)},
-                **{f"kl/{i}": float(k) for i, k in enumerate(kl)}}
-
+    row = lambda m: per_run_columns(m, [str(i) for i in range(n_runs)])  # noqa: E731
     describe = lambda r: "training win " + " ".join(f"{r[k]:.2f}" for k in r if k.startswith("win/"))
     learner = mapoca_learner(trainer, inputs, n_runs, row=row, describe=describe)
     done = loop.train(learner, rf.path("checkpoints"), rf.out / "train", log=rf.log, checkpoint_every=10)

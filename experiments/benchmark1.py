@@ -51,7 +51,7 @@ from trainers.curriculum import RANGE_TABLE, range_table
 from trainers.mapoca import make_trainer
 from trainers.networks import sample_actions
 from trainers.runfolder import RunFolder, add_run_arguments
-from trainers.runs import mapoca_learner
+from trainers.runs import mapoca_learner, per_run_columns
 
 TABLE_RANGES = (5.0, 9.0, 13.0, 17.0)
 ROBUST_SETS = {"MA-POCA1": (5.0,), "MA-POCA2": (5.0, 9.0), "MA-POCA3": (5.0, 9.0, 13.0),
@@ -223,14 +223,7 @@ def stage_train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, m
         members = [runs[i] for i in idx]
 
         def row(m: dict, members=members) -> dict:
-            # Beside each run's training win rate, its policy's entropy and the mean approximate KL of
-            # its updates: a team can lose its play in one update (benchmark1.md, "ten and
-            # thirty-five updates before the end").
-            win = m["wins"] / np.maximum(m["episodes"], 1)
-            names = [f"{r['name']}/{r['seed']}" for r in members]
-            return {**{f"win/{n}": float(w) for n, w in zip(names, win, strict=True)},
-                    **{f"entropy/{n}": float(e) for n, e in zip(names, m["entropy"], strict=True)},
-                    **{f"kl/{n}": float(k) for n, k in zip(names, m["approx_kl"], strict=True)}}
+            return per_run_columns(m, [f"{r['name']}/{r['seed']}" for r in members])
 
         learner = mapoca_learner(trainer, _run_inputs(members, base_seed, idx[0]), len(members), row=row,
                                  describe=_training_wins)

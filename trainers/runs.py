@@ -47,6 +47,15 @@ def _describe_mapoca(row: dict) -> str:
             f"ent {row['entropy']:.2f}")
 
 
+def per_run_columns(m: dict, names: list[str]) -> dict:
+    """One chunk's metrics of vmapped MA-POCA runs (values ``[R]``, ``names``: ``R`` column suffixes)
+    as host columns per run: ``win/<name>`` (the share of its episodes won), ``entropy/<name>`` and
+    ``kl/<name>`` (its updates' mean approximate KL; a team can lose its play in one update). Floats."""
+    win = np.asarray(m["wins"]) / np.maximum(np.asarray(m["episodes"]), 1)
+    columns = {"win": win, "entropy": np.asarray(m["entropy"]), "kl": np.asarray(m["approx_kl"])}
+    return {f"{c}/{n}": float(v) for c, values in columns.items() for n, v in zip(names, values, strict=True)}
+
+
 def mapoca_learner(trainer, init_args: tuple, n_runs: int, row: Callable[[dict], dict] = summarize,
                    describe: Callable[[dict], str] = _describe_mapoca) -> Learner:
     """MA-POCA (``trainers.mapoca.make_trainer``) as a ``Learner`` over ``n_runs`` runs.

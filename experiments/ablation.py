@@ -3,6 +3,7 @@
 
     python -m experiments.ablation --out runs/ablation [--variants today reference_ends ...] [--resume]
     python -m experiments.ablation --out runs/paper_budget --variants paper --resume   # the paper preset
+    python -m experiments.ablation --out runs/paper_r13_s0 --variants paper --ranges 13 --only-seeds 0 --resume
 
 Every variant is the `cpu` preset on the reference senses with ``VARIANTS``' overrides, but ``paper``,
 the `paper` preset at the paper's budget (the same protocol, the same games). It trains
@@ -80,10 +81,18 @@ def variant_config(name: str, total_steps: int | None = None) -> Config:
                                             **VARIANTS[name][1])
 
 
-def run_inputs(ranges, seeds: int, seed: int):
-    """``(teams, (keys, contents, range tables))``: run ``i = r * seeds + s`` plays ``ranges[r]``."""
-    teams = [{"ranges": (float(r),), "seed": s} for r in ranges for s in range(seeds)]
-    keys = jnp.stack([jax.random.fold_in(jax.random.PRNGKey(seed), i) for i in range(len(teams))])
+def run_inputs(ranges, seeds: int, seed: int, only=None):
+    """``(teams, (keys, contents, range tables))``: run ``i = r * seeds + s`` plays ``ranges[r]`` with
+    key ``fold_in(PRNGKey(seed), i)``. ``only``: the seed indices ``s`` to keep (default all), each
+    with the key it has among all ``seeds``, so that a seed trained alone is the same run as in the
+    whole layout (a 10 h `paper` run gives its cell before the next starts)."""
+    teams, index = [], []
+    for r_i, r in enumerate(ranges):
+        for s in range(seeds):
+            if only is None or s in only:
+                teams.append({"ranges": (float(r),), "seed": s})
+                index.append(r_i * seeds + s)
+    keys = jnp.stack([jax.random.fold_in(jax.random.PRNGKey(seed), i) for i in index])
     contents = jax.tree.map(lambda *x: jnp.stack(x), *[raidjax.make_params(skill_range=t["ranges"][0]) for t in teams])
     tables = jnp.stack([range_table(t["ranges"], size=RANGE_TABLE) for t in teams])
     return teams, (keys, contents, tables)
@@ -175,6 +184,9 @@ def main(argv=None) -> str:
     ap.add_argument("--ranges", nargs="+", type=float, default=[9.0, 13.0], help="skill ranges (reference content)")
     ap.add_argument("--seeds", type=whole_number_arg(1), default=3, help="training seeds per range")
     ap.add_argument("--seed", type=int, default=0, help="base PRNG seed of the runs (the same in every variant)")
+    ap.add_argument("--only-seeds", nargs="+", type=int, metavar="S",
+                    help="train and play only these of the --seeds seed indices (0-based), as they are in the "
+                         "whole layout: one paper-budget seed at a time")
     ap.add_argument("--total-steps", type=whole_number_arg(1),
                     help=f"decisions per run (default: {CPU_BUDGET:,} on the cpu preset, the paper's for 'paper')")
     ap.add_argument("--games", type=whole_number_arg(1), default=1000, help="chained games per team and rule switch")
@@ -183,11 +195,17 @@ def main(argv=None) -> str:
     for r in args.ranges:
         if not 1 <= r <= 20:
             raise ValueError(f"--ranges: value {r:g}; allowed: numbers in [1, 20]")
-    teams, inputs = run_inputs(args.ranges, args.seeds, args.seed)
+    for s in args.only_seeds or ():
+        if not 0 <= s < args.seeds:
+            raise ValueError(f"--only-seeds: value {s}; allowed: seed indices 0..{args.seeds - 1} "
+                             f"(--seeds {args.seeds})")
+    teams, inputs = run_inputs(args.ranges, args.seeds, args.seed, args.only_seeds)
     for name in args.variants:
         cfg = variant_config(name, args.total_steps)
         rf = RunFolder(args.out / name, {"ablation": name, "config": cfg.to_dict(), "ranges": args.ranges,
-                                         "seeds": args.seeds, "seed": args.seed, "games": args.games},
+                                         "seeds": args.seeds, "seed": args.seed, "games": args.games,
+                                         # only when given: folders started before the flag still resume
+                                         **({"only_seeds": args.only_seeds} if args.only_seeds else {})},
                        resume=args.resume and (args.out / name / "config.json").exists())
         timing = rf.stage("train", lambda cfg=cfg, rf=rf: train_variant(rf, cfg, inputs, len(teams)))
 

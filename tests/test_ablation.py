@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import json
 
+import jax
+import jax.numpy as jnp
 import pytest
 
-from experiments.ablation import CPU_BUDGET, NOT_ROWS, VARIANTS, table, variant_config
+from experiments.ablation import CPU_BUDGET, NOT_ROWS, VARIANTS, main, run_inputs, table, variant_config
 from trainers.config import PRESETS
 from trainers.mapoca import make_trainer
 
@@ -51,3 +53,17 @@ def test_table_from_play_rows(tmp_path):
     assert "| range 9, seed 0 | 0.600 | 1.000 | 0.200 | 1 | 0.100 | 0.900 |" in text
     assert "| PT-HR, range 9 | 0.500 | 0.500 | 0.500 |  | 0.400 | 0.300 |" in text
     assert "| today | 0.600 / 0.100 / 0.900 | 1 of 2 |" in text  # the overview: one seed, two positions
+
+
+def test_a_seed_trained_alone_is_the_same_run_as_in_the_whole_layout():
+    teams, (keys, contents, tables) = run_inputs([9.0, 13.0], 3, 0)
+    alone, (keys1, contents1, tables1) = run_inputs([9.0, 13.0], 3, 0, only=[1])
+    assert [t["seed"] for t in alone] == [1, 1] and [t["ranges"] for t in alone] == [(9.0,), (13.0,)]
+    # runs 1 and 4 of the layout (range r, seed s is run r * 3 + s): the same key, content and table
+    assert (keys1 == keys[jnp.array([1, 4])]).all() and (tables1 == tables[jnp.array([1, 4])]).all()
+    assert jax.tree.all(jax.tree.map(lambda a, b: (a == b[jnp.array([1, 4])]).all(), contents1, contents))
+
+
+def test_only_seeds_outside_the_layout_is_refused(tmp_path):
+    with pytest.raises(ValueError, match=r"--only-seeds: value 3; allowed: seed indices 0..2"):
+        main(["--out", str(tmp_path), "--seeds", "3", "--only-seeds", "3"])

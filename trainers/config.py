@@ -40,7 +40,8 @@ class Config:
         ent_coef, anneal_ent: entropy bonus β (linear decay to 0 if ``anneal_ent``).
         hidden, layers, heads: network width, MLP depth, attention heads (actor and critic).
         proj_attention: the actor attends over projectiles as entities (else they join its
-            self features; cheaper on CPU).
+            self features; cheaper on CPU). raidjax's senses only: the reference senses see
+            projectiles through rays, so with ``senses="reference"`` it has no effect.
         bf16: mixed precision: the networks' layers compute in bfloat16 (parameters, attention
             softmaxes, outputs, losses and Adam stay float32; ``trainers.networks``). Meant for
             GPUs; on CPUs without bfloat16 units it is slower.

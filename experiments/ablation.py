@@ -4,6 +4,7 @@
     python -m experiments.ablation --out runs/ablation [--variants today reference_ends ...] [--resume]
     python -m experiments.ablation --out runs/paper_budget --variants paper --resume   # the paper preset
     python -m experiments.ablation --out runs/paper_r13_s0 --variants paper --ranges 13 --only-seeds 0 --resume
+    python -m experiments.ablation --out runs/paper_r13 --tables-of runs/paper_r13_s0 runs/paper_r13_s1 ...
 
 Every variant is the `cpu` preset on the reference senses with ``VARIANTS``' overrides, but ``paper``,
 the `paper` preset at the paper's budget (the same protocol, the same games). It trains
@@ -146,11 +147,18 @@ def overview(plays: dict[str, list[dict]]) -> str:
     return markdown_table(header, body)
 
 
-def table(out: Path) -> str:
+def table(*outs: Path) -> str:
     """``ablation.md``: the overview, then per variant, range and seed, all games / first game / lowest
-    position / positions below PT-HR's / without the carry / clean rules, and PT-HR's row per range."""
-    plays = {name: [json.loads(x) for x in (out / name / "play.jsonl").read_text().splitlines()]
-             for name in VARIANTS if (out / name / "play.jsonl").exists()}
+    position / positions below PT-HR's / without the carry / clean rules, and PT-HR's row per range.
+    Several ``outs`` (seeds trained alone, ``--only-seeds``) are read as one: their play rows join
+    (PT-HR's, the same games in every folder, once)."""
+    plays = {}
+    for out in outs:
+        for name in VARIANTS:
+            path = out / name / "play.jsonl"
+            if path.exists():
+                plays.setdefault(name, []).extend(json.loads(x) for x in path.read_text().splitlines())
+    plays = {name: plays[name] for name in VARIANTS if name in plays}
     lines = [overview(plays), ""] if plays else []
     for name, rows in plays.items():
         what = VARIANTS[name][0]
@@ -191,7 +199,19 @@ def main(argv=None) -> str:
                     help=f"decisions per run (default: {CPU_BUDGET:,} on the cpu preset, the paper's for 'paper')")
     ap.add_argument("--games", type=whole_number_arg(1), default=1000, help="chained games per team and rule switch")
     ap.add_argument("--resume", action="store_true", help="continue the variants already started in --out")
+    ap.add_argument("--tables-of", nargs="+", type=Path, metavar="DIR",
+                    help="train nothing: write OUT/ablation.md from the play rows of these --out folders "
+                         "(seeds trained alone with --only-seeds), as one table")
     args = ap.parse_args(argv)
+    if args.tables_of:
+        for d in args.tables_of:
+            if not any((d / n / "play.jsonl").exists() for n in VARIANTS):
+                raise ValueError(f"--tables-of: {d} holds no variant that has played (no <variant>/play.jsonl)")
+        text = table(*args.tables_of)
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write(args.out / "ablation.md", text + "\n")
+        print(text)
+        return text
     for r in args.ranges:
         if not 1 <= r <= 20:
             raise ValueError(f"--ranges: value {r:g}; allowed: numbers in [1, 20]")

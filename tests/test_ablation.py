@@ -67,3 +67,25 @@ def test_a_seed_trained_alone_is_the_same_run_as_in_the_whole_layout():
 def test_only_seeds_outside_the_layout_is_refused(tmp_path):
     with pytest.raises(ValueError, match=r"--only-seeds: value 3; allowed: seed indices 0..2"):
         main(["--out", str(tmp_path), "--seeds", "3", "--only-seeds", "3"])
+
+
+def test_tables_of_seeds_trained_alone_join_into_one_table(tmp_path):
+    def folder(seed, team):
+        rows = []
+        for switch in ("reference", "carry_cooldowns=False", "clean"):
+            rows.append({"switch": switch, "range": 13.0, "agent": "PT-HR", "win_rate": 0.5,
+                         "win_rate_first_game": 0.5, "win_rate_by_position": [0.5, 0.5]})
+            rows.append({"switch": switch, "range": 13.0, "agent": "MA-POCA", "seed": seed, "win_rate": team,
+                         "win_rate_first_game": team, "win_rate_by_position": [team, team]})
+        (tmp_path / f"s{seed}" / "paper").mkdir(parents=True)
+        (tmp_path / f"s{seed}" / "paper" / "play.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+        return tmp_path / f"s{seed}"
+
+    dirs = [folder(0, 0.9), folder(1, 0.3)]
+    text = main(["--out", str(tmp_path / "all"), "--tables-of", *map(str, dirs)])
+    assert (tmp_path / "all" / "ablation.md").read_text() == text + "\n"
+    assert "| range 13, seed 0 | 0.900 |" in text and "| range 13, seed 1 | 0.300 |" in text
+    assert text.count("| PT-HR, range 13 |") == 1
+    assert "| paper | 0.600 / 0.600 / 0.600 | 2 of 4 |" in text  # the mean of both seeds; seed 1 below at 2
+    with pytest.raises(ValueError, match="--tables-of: .* holds no variant that has played"):
+        main(["--out", str(tmp_path / "x"), "--tables-of", str(tmp_path / "nothing")])

@@ -3,6 +3,7 @@ chunking (a shorter last chunk), checkpoint cadence, metrics rows, stopping and 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import jax
@@ -88,3 +89,38 @@ def test_a_resumed_run_lowers_the_chunk_of_a_fresh_run(tmp_path):
     assert program(_lowering_state(restored, 2)) == program(_lowering_state(fresh, 2))
 
 
+
+
+def test_progress_line_shows_the_rate_of_the_last_chunks(tmp_path):
+    """One chunk stalls (as a run paused or sharing its cores does); once it is more than
+    RECENT_CHUNKS chunks old, the progress line's rate is that of the chunks since, while the metrics
+    rows keep the invocation's average."""
+    import re
+    import time
+
+    from trainers.loop import RECENT_CHUNKS
+
+    def stall_at_update_1(x):
+        if x[0] == 1.0:  # the state after the first update (run 0 starts at 0)
+            time.sleep(1.0)
+        return x
+
+    learner = counter(RECENT_CHUNKS + 3, 1)
+    plain = learner.chunk
+
+    def chunk(n):
+        def run(state):
+            x = jax.pure_callback(stall_at_update_1, jax.ShapeDtypeStruct(state["x"].shape, state["x"].dtype),
+                                  state["x"])
+            return plain(n)({"x": x})
+        return run
+
+    lines = []
+    train(dataclasses.replace(learner, chunk=chunk), tmp_path / "ckpt", tmp_path, log=lines.append)
+    rates = [float(re.search(r"([\d,]+) steps/s", s).group(1).replace(",", "")) for s in lines if "steps/s" in s]
+    rows = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    assert len(rates) == len(rows) == RECENT_CHUNKS + 3
+    # 20 steps a chunk (10 per update, 2 runs): while the stall is among the last chunks, at most
+    # 20 x RECENT_CHUNKS steps in over 1 s; after, the chunks of a few milliseconds alone
+    assert all(r <= 20 * RECENT_CHUNKS for r in rates[1:RECENT_CHUNKS + 1])
+    assert rows[-1]["steps_per_s"] <= 20 * len(rows) < rates[-1]

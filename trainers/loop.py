@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -94,6 +95,12 @@ class Trained:
     steps_per_s: float
 
 
+# The progress line's rate and ETA are those of the last chunks: a run that shared its cores for a
+# while, or was paused, shows its rate now, not its average since it started. The metrics rows
+# keep the invocation's average (``steps_per_s``).
+RECENT_CHUNKS = 10
+
+
 def _lowering_state(state, n_runs: int):
     """What a chunk is lowered with: on one device (the runs not split, ``batch_sharding``) only
     the shapes and dtypes of ``state``, since a restored state is committed to its device and a
@@ -136,6 +143,7 @@ def train(learner: Learner, ckpt_dir: str | Path, metrics_dir: str | Path, *, me
     rows_log = metrics.MetricsLog(metrics_dir, resume_update=start, name=metrics_name)
     compiled, compile_s = {}, time.perf_counter() - t0
     u, chunks_here, train_s = start, 0, 0.0
+    recent = deque(maxlen=RECENT_CHUNKS)  # (steps, seconds) of the last chunks, for the progress line
     while u < total and (max_chunks is None or chunks_here < max_chunks):
         n = min(per, total - u)
         if n not in compiled:
@@ -147,17 +155,20 @@ def train(learner: Learner, ckpt_dir: str | Path, metrics_dir: str | Path, *, me
         t = time.perf_counter()
         state, m = compiled[n](state, *learner.chunk_args)
         m = jax.device_get(m)  # waits for the chunk
-        train_s += time.perf_counter() - t
+        chunk_s = time.perf_counter() - t
+        train_s += chunk_s
         chunks_here += 1
+        recent.append((n * learner.steps_per_update * learner.n_runs, chunk_s))
         rate = (u + n - start) * learner.steps_per_update * learner.n_runs / max(train_s, 1e-9)
         clock = {"seconds": seconds_before + train_s, "steps_per_s": rate}
         new_rows = learner.rows(u, n, m, clock)
         for row in new_rows:  # before the checkpoint: a resume drops rows past it, never leaves gaps
             rows_log.write(row)
         u += n
-        eta = (total - u) * learner.steps_per_update * learner.n_runs / max(rate, 1e-9)
+        now = sum(steps for steps, _ in recent) / max(sum(sec for _, sec in recent), 1e-9)
+        eta = (total - u) * learner.steps_per_update * learner.n_runs / max(now, 1e-9)
         log(f"update {u}/{total}  steps {u * learner.steps_per_update / 1e6:.3g}M/"
-            f"{total * learner.steps_per_update / 1e6:.3g}M per run  {rate:,.0f} steps/s  ETA {fmt_seconds(eta)}  "
+            f"{total * learner.steps_per_update / 1e6:.3g}M per run  {now:,.0f} steps/s  ETA {fmt_seconds(eta)}  "
             + learner.describe(new_rows[-1]))
         stopping = u == total or chunks_here == max_chunks
         if (u // per) % checkpoint_every == 0 or stopping:

@@ -89,8 +89,6 @@ def test_a_resumed_run_lowers_the_chunk_of_a_fresh_run(tmp_path):
     assert program(_lowering_state(restored, 2)) == program(_lowering_state(fresh, 2))
 
 
-
-
 def test_progress_line_shows_the_rate_of_the_last_chunks(tmp_path):
     """One chunk stalls (as a run paused or sharing its cores does); once it is more than
     RECENT_CHUNKS chunks old, the progress line's rate is that of the chunks since, while the metrics

@@ -139,7 +139,7 @@ def playtest_beside(games: int, groups: int | None = None, skills=None):
         lo, hi = np.asarray(pcg.env.low()), np.asarray(pcg.env.high())
         if skills is None:
             skills = lo + np.random.default_rng(0).random((groups, lo.size)) * (hi - lo)
-        contents = jax.vmap(lambda s: pcg.env.skill_params(pcg.env.base_game(), s))(jax.numpy.asarray(skills))
+        contents = jax.vmap(lambda s: pcg.PAPER_SPACE.apply(pcg.base_game(), s))(jax.numpy.asarray(skills))
         n = games // groups
         play = jax.jit(lambda k: raidjax.playtest_groups(jax.random.split(k, groups), contents,
                                                          raidjax.policies.heuristic, n))

@@ -59,7 +59,7 @@ class Scale:
         tester: ``trainers.config.Config`` overrides on the MA-POCA ``preset`` (``content_box`` is
             always on); the specialists of the AdjustedScore train with the same settings.
         heldout: held-out skills of the AdjustedScore (one specialist each).
-        grid, grid_games: box grid values per parameter (``pcg.env.box_grid``) and games per skill.
+        grid, grid_games: box grid values per parameter (``pcg.measurement.box_grid``) and games per skill.
         ppo: ``trainers.ppo_pcgrl.PPOConfig`` overrides on its ``preset`` (both generators).
         chunk: PPO updates per jitted chunk.
         episodes: generation episodes per target and generator.
@@ -198,7 +198,7 @@ def stage_tester_check(rf: RunFolder, scale: Scale, team: Team, seed: int) -> di
     policy = teams["learned"][0].policy  # the tester's architecture, played with each specialist's weights
     key = jax.random.PRNGKey(seed + 101)
     space = team.space
-    grid = pcg.env.box_grid(scale.grid, space) if space.size <= 4 else pcg.env.box_probes(space)
+    grid = pcg.measurement.box_grid(scale.grid, space) if space.size <= 4 else pcg.measurement.box_probes(space)
     held = heldout_skills(scale.heldout, space)
     both = np.concatenate([grid, held])  # one program per tester for the grid and the held-out skills
     learned, tester_win = np.split(win_rates(key, both, scale.grid_games, team, *teams["learned"]), [len(grid)])

@@ -50,7 +50,7 @@ def test_a_chosen_parameter_list_edits_exactly_those_fields_within_bounds():
     assert space.easier.tolist() == [1, -1, -1, 1, 1, 1, -1, 1]  # a bigger boss is harder
 
     edit = jax.jit(lambda s, a: pcg.env.apply_action(s, a, space))
-    skill = jnp.asarray(pcg.env.box_probes(space)[0])
+    skill = jnp.asarray(pcg.measurement.box_probes(space)[0])
     rng = np.random.default_rng(0)
     for _ in range(60):  # random walks hit every bound
         skill = edit(skill, jnp.asarray(rng.integers(0, 5, 8), jnp.int32))

@@ -149,7 +149,7 @@ def test_side_by_side_measurements_are_one_playtest_of_each_episode_s_own_games(
     alone = np.stack([np.asarray(one(k, s)) for k, s in zip(keys, skills, strict=True)])
     assert 0 < alone.mean() < 1  # wins and losses: the comparison can fail
     singles = []
-    monkeypatch.setattr(pcg.env, "playtest", lambda *a, **k: singles.append(1) or raidjax.playtest(*a, **k))
+    monkeypatch.setattr(pcg.measurement, "playtest", lambda *a, **k: singles.append(1) or raidjax.playtest(*a, **k))
     traced = jax.jit(jax.vmap(lambda k, s: pcg.play_outcomes(k, p.game, s, 8))).trace(keys, skills)
     lowered = traced.lower()
     text = lowered.as_text()
@@ -164,7 +164,7 @@ def test_side_by_side_measurements_are_one_playtest_of_each_episode_s_own_games(
     games = jax.tree.map(lambda x: jnp.stack([x] * 3), p.game)
     per_game = jax.jit(jax.vmap(lambda k, g, s: pcg.play_outcomes(k, g, s, 8)))(keys, games, skills)
     np.testing.assert_array_equal(per_game, alone)
-    contents = jax.vmap(lambda s: pcg.env.skill_params(p.game, s))(skills)
+    contents = jax.vmap(lambda s: pcg.PAPER_SPACE.apply(p.game, s))(skills)
     with pytest.raises(ValueError, match=r"keys: shape \[2\]; allowed: one key per group, \[3\]"):
         raidjax.playtest_groups(keys[:2], contents, raidjax.policies.heuristic, 8)
     with pytest.raises(ValueError, match="games_per_arena: value 3 does not divide the 8 games"):
@@ -179,7 +179,7 @@ def test_win_rate_is_mean_of_game_outcomes():
     assert wins.shape == (8,) and wins.dtype == bool
     assert float(pcg.measure(key, p, skill)) == pytest.approx(wins.mean())
     # The skill really is in every player's slot 1, speed 10 and cost 1.
-    g = pcg.env.skill_params(p.game, skill)
+    g = pcg.PAPER_SPACE.apply(p.game, skill)
     np.testing.assert_allclose(np.asarray(g.skills.range[:3, 0]), 20.0)
     np.testing.assert_allclose(np.asarray(g.skills.projectile_speed[:3, 0]), 10.0)
     np.testing.assert_allclose(np.asarray(g.skills.cost[:3, 0]), 1.0)

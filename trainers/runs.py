@@ -130,12 +130,13 @@ def ppo_learner(config: PPOConfig, keys: jax.Array, targets: jax.Array, updates_
 def eval_contents(cfg: Config) -> dict[str, raidjax.Params]:
     """The contents of MA-POCA's final evaluation, by label: one per skill range in
     ``cfg.skill_ranges``, or under ``cfg.content_box`` the box's centre and each parameter at its
-    bounds (``raidjax.pcg.env.box_probes``; label: the values joined by ``/``)."""
+    bounds (``raidjax.pcg.measurement.box_probes``; label: the values joined by ``/``)."""
     if not cfg.content_box:
         return {f"{r:g}": raidjax.make_params(players=list(cfg.players), skill_range=r) for r in cfg.skill_ranges}
     space = pcg.make_space(cfg.parameters, cfg.players)
     base = pcg.base_game(cfg.players)
-    return {"/".join(f"{v:g}" for v in sk): space.apply(base, jnp.asarray(sk)) for sk in pcg.env.box_probes(space)}
+    probes = pcg.measurement.box_probes(space)
+    return {"/".join(f"{v:g}" for v in sk): space.apply(base, jnp.asarray(sk)) for sk in probes}
 
 
 def chained_win_rates(results: dict) -> dict:

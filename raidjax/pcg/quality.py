@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from raidjax.pcg import env
+from raidjax.pcg import env, measurement
 
 TARGETS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
 # Diversity keeps the skills whose |W_t - W_c| is below this (the paper §5.3, SPEC §11).
@@ -280,7 +280,7 @@ def yield_stats(gen: dict) -> dict:
 @partial(jax.jit, static_argnames=("n_games", "repeats"))
 def _rates(key, game, skill, n_games: int, repeats: int):
     keys = jax.random.split(key, repeats)
-    return jax.vmap(lambda k: jnp.mean(env.play_outcomes(k, game, skill, n_games).astype(jnp.float32)))(keys)
+    return jax.vmap(lambda k: jnp.mean(measurement.play_outcomes(k, game, skill, n_games).astype(jnp.float32)))(keys)
 
 
 def win_rate_noise(key: jax.Array, skill, n_games_list=(25, 50, 100, 300), repeats: int = 20) -> list[dict]:

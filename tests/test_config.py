@@ -34,6 +34,9 @@ def test_a_wrong_field_in_a_saved_config_is_one_line_naming_it(tmp_path, learner
     with pytest.raises(ValueError) as e:
         load_config("cpu", path, learner=learner)
     assert str(e.value).startswith(message) and "\n" not in str(e.value)
+    with pytest.raises(ValueError) as e:  # the same fields given as overrides
+        load_config("cpu", learner=learner, **fields)
+    assert str(e.value).startswith(message) and "\n" not in str(e.value)
 
 
 def test_a_ppo_config_saved_with_hidden_as_a_list_reads_back_and_its_run_resumes(tmp_path):

@@ -437,4 +437,4 @@ def load_config(preset: str = "cpu", path: str | Path | None = None, *, learner:
     if path is not None:
         data = read_fields(path, cls.__name__)
         cfg = cls.from_dict({**cfg.to_dict(), **(upgrade_ppo_fields(data) if learner == "ppo_pcgrl" else data)})
-    return cfg.replace(**{k: v for k, v in overrides.items() if v is not None})
+    return cfg.replace(**known_fields(cls, {k: v for k, v in overrides.items() if v is not None}))

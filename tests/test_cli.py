@@ -185,7 +185,7 @@ def _documented() -> dict[str, set[str]]:
         *sorted((ROOT / "docs" / "results").glob("*.md"))]
     text = "".join(p.read_text() for p in docs)
     out: dict[str, set[str]] = {}
-    pattern = r"\braidjax (calibrate|render|plot|train [\w-]+|benchmark \w+)\b([^`\n|]*)"
+    pattern = r"\braidjax (calibrate|render|plot|balance|train [\w-]+|benchmark \w+)\b([^`\n|]*)"
     for command, rest in re.findall(pattern, text):
         out.setdefault(command, set()).update(re.findall(r"--[a-z][\w-]*", rest))
     return out

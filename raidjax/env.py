@@ -15,7 +15,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from raidjax import damage, lanes, movement
+from raidjax import damage, lanes, movement, validate
 from raidjax.observation import observe
 from raidjax.phases import advance_lanes, substep  # noqa: F401 (substep: public, raidjax.env.substep)
 from raidjax.reference_observation import remember, start_memory
@@ -53,6 +53,7 @@ def reset(key: jax.Array, params: Params) -> tuple[Observation, State]:
     Returns:
         ``(obs, state)``: ``Observation`` with player axis ``P = U - 1`` and the initial ``State``.
     """
+    validate.one_arena("reset", params.team)
     st, sk = params.stats, params.skills
     u_n, s_n = sk.in_use.shape
     n_players = u_n - 1
@@ -130,6 +131,7 @@ def check_actions(actions, params: Params) -> jax.Array:
         ValueError: ``actions`` not of shape ``[P]`` or not of an integer dtype (the message names
             the shape or dtype and what is allowed).
     """
+    validate.one_arena("step", params.team)
     actions = jnp.asarray(actions)
     n_players = params.team.shape[-1] - 1
     if actions.shape != (n_players,):

@@ -9,6 +9,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from raidjax import validate
 from raidjax.combat import haste_factor, skill_targets, usable_slots
 from raidjax.damage import effect_table, pick_effects, source_index
 from raidjax.reference_observation import ReferenceObservation, observe_reference
@@ -28,6 +29,7 @@ def skill_damage(params: Params) -> jnp.ndarray:
 def action_mask(state: State, params: Params) -> jnp.ndarray:
     """``bool[P, A]``, ``A = params.config.n_actions``: which actions do something now (dead players
     may only no-op); all true under the reference action space, which masks nothing."""
+    validate.one_arena("action_mask", params.team)
     n_players = params.team.shape[0] - 1
     if params.config.action_space == "reference":
         return jnp.ones((n_players, params.config.n_actions), bool)
@@ -68,6 +70,7 @@ def observe(state: State, params: Params, table: Effects | None = None) -> Obser
         ``Observation`` with a leading player axis ``P`` (shapes in ``types.Observation``), or under
         ``config.observation = "reference"`` a ``ReferenceObservation`` (``raidjax.reference_observation``).
     """
+    validate.one_arena("observe", params.team)
     table = effect_table(params) if table is None else table
     if params.config.observation == "reference":
         return observe_reference(state, params, table, action_mask(state, params))

@@ -15,6 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from raidjax import validate
 from raidjax.types import ACTION_HEURISTIC, Params
 
 
@@ -93,9 +94,7 @@ def spaces(params: Params) -> Spaces:
     """
     from raidjax.env import reset
 
-    if params.team.ndim != 1:
-        raise ValueError(f"params: team of shape {list(params.team.shape)}; allowed: one arena's params "
-                         "(team of shape [U]), e.g. jax.tree.map(lambda x: x[0], params)")
+    validate.one_arena("spaces", params.team)
     obs, _ = jax.eval_shape(reset, jax.random.key(0), params)
     boxes = {}
     for f in dataclasses.fields(obs):

@@ -173,3 +173,13 @@ def check_fields(obj, bounds: dict[str, tuple]) -> None:
 def kind_word(kind: str) -> str:
     """``"int"`` -> ``"a whole number"``, ``"float"`` -> ``"a number"``, ``"bool"`` -> ``"true or false"``."""
     return {"int": "a whole number", "float": "a number", "bool": "true or false"}.get(kind, kind)
+
+
+def one_arena(call: str, team) -> None:
+    """Raise a one-line ``ValueError`` unless ``team`` (``Params.team``) is one arena's, of shape
+    ``[U]``: ``call`` (``"reset"``, ``"step"``, ...) plays one arena and is vmapped over a batch."""
+    shape = tuple(getattr(team, "shape", ()))
+    if len(shape) != 1:
+        raise ValueError(f"params: team of shape {list(shape)}; allowed: one arena's params (team of shape [U]) "
+                         f"in {call}: jax.vmap({call}) plays a batch, jax.tree.map(lambda x: x[0], params) is its "
+                         "first arena")

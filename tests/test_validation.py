@@ -180,6 +180,25 @@ def test_playtest_refuses_bad_params_policy_and_bins():
                     f"bins: value {bins!r}")
 
 
+def test_the_game_calls_refuse_a_batch_of_params_naming_it():
+    # One arena's calls given a batch (forgot the vmap): one line naming params, before compiling;
+    # under jax.vmap the same calls see one arena and play.
+    key = jax.random.key(0)
+    obs, state = RESET(key, REF)
+    batch = jax.tree.map(lambda x: jnp.stack([x, x]), REF)
+    actions = jnp.zeros(3, jnp.int32)
+    calls = [("reset", lambda: raidjax.reset(key, batch)),
+             ("step", lambda: raidjax.step(key, state, actions, batch)),
+             ("step", lambda: raidjax.step_autoreset(key, state, actions, batch)),
+             ("reset", lambda: raidjax.next_episode(key, state, batch)),
+             ("observe", lambda: raidjax.observe(state, batch)),
+             ("action_mask", lambda: raidjax.action_mask(state, batch)),
+             ("spaces", lambda: raidjax.spaces(batch))]
+    for name, call in calls:
+        raises_line(call, "params: team of shape [2, 4]", f"in {name}:", f"jax.vmap({name})")
+    assert jax.eval_shape(jax.vmap(raidjax.reset), jax.random.split(key, 2), batch)[0].alive.shape == (2, 3)
+
+
 def test_win_rate_refuses_empty_results():
     empty = {"outcome": jnp.zeros((0,), jnp.int32)}
     raises_line(lambda: raidjax.win_rate(empty), "results['outcome']: value of shape (0,)", "n_games >= 1")

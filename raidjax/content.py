@@ -273,19 +273,31 @@ def with_player_skill(params: Params, slot: int = 0, **fields) -> Params:
 
     Args:
         params: one arena's ``Params`` (skills ``[U, S]``).
-        slot: skill slot index (static).
-        **fields: skill field name -> scalar or ``[P]`` value.
+        slot: skill slot index, a whole number in ``[0, S)`` (static).
+        **fields: skill field name -> a value of the field's dtype (``float32``, or ``int32`` for
+            the integer fields), a scalar ``[]`` (every player) or ``[P]`` (one per player); traced
+            values are fine.
 
     Returns:
         ``Params`` with ``skills.<field>[:P, slot]`` replaced.
 
     Raises:
-        ValueError: an unknown skill field.
+        ValueError: an unknown skill field, a slot outside ``[0, S)`` or a value of another shape
+            (one line naming it).
     """
     unknown = set(fields) - set(SKILL_SPECS)
     if unknown:
         raise ValueError(f"with_player_skill: unknown skill field(s) {sorted(unknown)}; known: {list(SKILL_SPECS)}")
     n_players = params.team.shape[-1] - 1
+    n_slots = params.skills.in_use.shape[-1]
+    allowed = f"a whole number in [0, {n_slots}) (0-based skill slot)"
+    slot = validate.whole_number("slot", slot, 0, allowed)
+    if slot >= n_slots:
+        raise ValueError(f"slot: value {slot} is too large; allowed: {allowed}")
+    for k, v in fields.items():
+        if jnp.shape(v) not in ((), (n_players,)):
+            raise ValueError(f"{k}: value of shape {list(jnp.shape(v))}; allowed: a scalar or one value per player "
+                             f"(shape [{n_players}])")
     sk = params.skills
     new = {k: getattr(sk, k).at[:n_players, slot].set(jnp.asarray(v, getattr(sk, k).dtype)) for k, v in fields.items()}
     return params.replace(skills=sk.replace(**new))

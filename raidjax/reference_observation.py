@@ -72,8 +72,9 @@ class ReferenceObservation:
     alive: jax.Array
 
     def flat(self) -> jax.Array:
-        """``float32[..., P, 204]`` in ML-Agents' sensor order: buffer (18), projectile rays, wall rays,
-        stack (any leading batch axes)."""
+        """``float32[..., P, 9 (P - 1) + 186]`` (204 for the reference's 3 players) in ML-Agents' sensor
+        order: buffer (9 per teammate), projectile rays (63), wall rays (63), stack (60), with any
+        leading batch axes."""
         mates = self.teammates.reshape(*self.stack.shape[:-1], -1)
         return jnp.concatenate([mates, self.projectile_rays, self.wall_rays, self.stack], -1)
 

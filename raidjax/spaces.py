@@ -71,8 +71,8 @@ class Spaces:
         observation: ``Box`` per field of the observation (``Observation`` or, under
             ``observation="reference"``, ``ReferenceObservation``), each with the leading player
             axis ``P`` (features unbounded, masks in {0, 1}).
-        flat_observation: ``Box`` of the observation's ``flat()``, ``float32[P, D]`` (D = 204 for
-            the reference observation).
+        flat_observation: ``Box`` of the observation's ``flat()``, ``float32[P, D]`` (D = 9 (P - 1) +
+            186 for the reference observation: 204 for 3 players).
     """
 
     n_players: int

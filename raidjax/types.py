@@ -95,7 +95,7 @@ class EnvConfig:
             instead of the fixed spawn; off in both rule sets (the reference spawns are fixed).
         observation: ``"raidjax"`` (``Observation``, the default) or ``"reference"``
             (``ReferenceObservation``: the reference players' rays, teammate buffer and stacked
-            vector, 204 floats); not a rule switch: it changes what players see, not the game.
+            vector, 204 floats for 3 players); not a rule switch: it changes what players see, not the game.
         action_space: ``"raidjax"`` (``N_ACTIONS`` = 10 ids with an action mask, the default) or
             ``"reference"`` (8 ids, ``REFERENCE_ACTIONS``, an all-true mask: the reference masks nothing).
 

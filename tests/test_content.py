@@ -243,3 +243,10 @@ def test_with_player_skill_edits_players_only_and_traces():
     raidjax.validate_params(batch)  # the edited contents are valid
     with pytest.raises(ValueError, match="unknown skill field"):
         raidjax.with_player_skill(base, rnage=3.0)
+    for slot in (3, -1, 1.0):  # slot 3 used to change nothing, silently
+        with pytest.raises(ValueError, match=rf"^slot: value {slot!r} .*allowed: a whole number in \[0, 3\)"):
+            raidjax.with_player_skill(base, slot, range=3.0)
+    with pytest.raises(ValueError, match=r"^range: value of shape \[2\]; allowed: a scalar or one value per player"):
+        raidjax.with_player_skill(base, range=jnp.ones(2))
+    per_player = raidjax.with_player_skill(base, 2, range=jnp.array([4.0, 5.0, 6.0]))
+    assert per_player.skills.range[:3, 2].tolist() == [4.0, 5.0, 6.0]

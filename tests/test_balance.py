@@ -88,6 +88,17 @@ def test_bad_parameter_names_fail_naming_them(names, players, fragment):
     assert fragment in str(err.value)
 
 
+def test_the_box_grid_spans_the_bounds_and_refuses_a_bad_size():
+    grid = pcg.measurement.box_grid(np.int64(3))  # a numpy integer is a whole number too
+    assert grid.shape == (81, 4) and grid.dtype == np.float32
+    np.testing.assert_allclose(grid.min(0), PAPER_SPACE.low)
+    np.testing.assert_allclose(grid.max(0), PAPER_SPACE.high)
+    np.testing.assert_allclose(pcg.measurement.box_grid(1)[0], (PAPER_SPACE.low + PAPER_SPACE.high) / 2)
+    for bad in (0, 2.0, "3"):
+        with pytest.raises(ValueError, match=rf"^points: value {bad!r} .*allowed: a whole number >= 1"):
+            pcg.measurement.box_grid(bad)
+
+
 def test_pcg_heuristic_moves_the_picked_parameter_toward_easier_in_any_space():
     params = pcg.make_pcg_params(n_games=2, players=MIXED, parameters=EIGHT)
     _, state = pcg.reset(jax.random.PRNGKey(0), params)

@@ -97,6 +97,18 @@ def test_observation_modes():
 
 
 
+@pytest.mark.parametrize("field,value,what", [
+    ("max_edits", 2.5, "is a float"), ("band", -1.0, "is out of range"), ("strict_length", "no", "is a str"),
+    ("band", "x", "is a str"), ("target", "ab", "is a str"), ("n_games", "5", "is a str"),
+    ("target", (0.7, 0.1), "is out of range"), ("target", (0.1, 0.2, 0.3), "is a tuple of length 3"),
+    ("n_games", 0, "is too small"), ("pool_repeats", 1, "is an int")])
+def test_make_pcg_params_refuses_bad_values_in_one_line_naming_the_field(field, value, what):
+    with pytest.raises(ValueError) as e:
+        pcg.make_pcg_params(**{field: value})
+    assert str(e.value).startswith(f"{field}: value {value!r} {what}; allowed: ") and "\n" not in str(e.value)
+    assert pcg.make_pcg_params(target=np.float32(0.5), n_games=np.int64(4)).n_games == 4  # numpy scalars are fine
+
+
 @pytest.mark.parametrize("field,value", [("edit_cost", -0.5), ("goal_cost", -0.1), ("n_minibatches", 3),
                                          ("n_games", 0), ("gamma", 1.5), ("lr", "1e-3"), ("pool_repeats", 1),
                                          ("total_steps", True), ("lr", float("nan"))])

@@ -101,6 +101,12 @@ def test_goal_axis_in_the_learner_config_and_on_the_command_line():
             PPOConfig(**bad)
     assert pcg.env.parse_axis("1,1,-1,0") == (1, 1, -1, 0)
     assert _args(["--goal-cost", "1", "--goal-axis", "1,1,-1,0"]).goal_axis == (1, 1, -1, 0)
-    for bad in ("1,1,1", "2,0,0,0", "a,b,c,d"):
+    for bad in ("2,0,0,0", "a,b,c,d"):
         with pytest.raises(SystemExit):
             _args(["--goal-axis", bad])
+    # how many signs is the edited space's: two for a two-parameter space, four for the paper's
+    assert _args(["--goal-axis", "1,-1"]).goal_axis == (1, -1)
+    two = ["skill1.range", "skill1.cool_time"]
+    assert PPOConfig(goal_cost=0.5, goal_axis=(1, -1), parameters=two).goal_axis == (1, -1)
+    with pytest.raises(ValueError, match=r"goal_axis: value \(1, 1, 1\) must be 4 signs"):
+        PPOConfig(goal_cost=0.5, goal_axis=(1, 1, 1))

@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from raidjax import policies
+from raidjax import policies, validate
 from raidjax.content import REFERENCE_PLAYERS, make_params
 from raidjax.pcg.measurement import play_outcomes
 from raidjax.pcg.space import PAPER_SPACE, Space, make_space
@@ -173,14 +173,18 @@ def check_axis(goal_axis, size: int = N_PARAMS) -> tuple[int, ...] | None:
 
 
 def parse_axis(text: str) -> tuple[int, ...]:
-    """``"1,0,-1,1"`` -> ``(1, 0, -1, 1)`` for command lines, checked by ``check_axis``; raises
+    """``"1,0,-1,1"`` -> ``(1, 0, -1, 1)`` for command lines: comma-separated signs, each -1, 0 or 1;
+    how many the edited space needs is ``check_axis``'s (the space is known later). Raises
     ``ValueError`` naming the value and what is allowed."""
+    allowed = "comma-separated signs, each -1, 0 or 1, one per edited parameter (the paper's four: " \
+              f"{','.join(PAPER_SPACE.fields)})"
     try:
         signs = tuple(int(v) for v in text.split(","))
     except ValueError:
-        raise ValueError(f"goal_axis: value {text!r} must be {N_PARAMS} comma-separated signs, each -1, 0 or 1 "
-                         f"(for {','.join(PAPER_SPACE.fields)})") from None
-    return check_axis(signs)
+        raise ValueError(f"goal_axis: value {text!r}; allowed: {allowed}") from None
+    if any(v not in (-1, 0, 1) for v in signs):
+        raise ValueError(f"goal_axis: value {text!r}; allowed: {allowed}")
+    return signs
 
 
 def axis_arg(text: str) -> tuple[int, ...]:
@@ -213,11 +217,20 @@ def make_pcg_params(
     Raises:
         ValueError: naming the field, the value and what is allowed.
     """
-    lo, hi = (target, target) if isinstance(target, int | float) else target
+    allowed = "a win rate in [0, 1], or (low, high) with 0 <= low <= high <= 1"
+    pair = isinstance(target, list | tuple)
+    if pair and len(target) != 2:
+        raise validate.fail("target", target, allowed)
+    lo, hi = (validate.number("target", t, allowed) for t in (target if pair else (target, target)))
     if not 0.0 <= lo <= hi <= 1.0:
-        raise ValueError(f"target: value {target} must lie in [0, 1] with low <= high")
-    if n_games < 1 or max_edits < 1:
-        raise ValueError(f"n_games={n_games}, max_edits={max_edits}: both must be >= 1")
+        raise validate.fail("target", target, allowed, "out of range")
+    n_games = validate.whole_number("n_games", n_games, 1)
+    max_edits = validate.whole_number("max_edits", max_edits, 1)
+    band = validate.number("band", band, "a number in [0, 1)")
+    if not 0.0 <= band < 1.0:
+        raise validate.fail("band", band, "a number in [0, 1)", "out of range")
+    strict_length, observe_target, pool_repeats = (validate.flag(k, v) for k, v in (
+        ("strict_length", strict_length), ("observe_target", observe_target), ("pool_repeats", pool_repeats)))
     f = lambda x: np.float32(x)
     space = make_space(parameters, players)
     game = base_game(tuple(players))

@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.custom_batching import custom_vmap
 
-from raidjax import policies
+from raidjax import policies, validate
 from raidjax.pcg.space import PAPER_SPACE, Space
 from raidjax.playtest import auto_games_per_arena, playtest, playtest_groups
 from raidjax.types import WIN, Params
@@ -94,8 +94,7 @@ def box_grid(points: int, space: Space = PAPER_SPACE) -> np.ndarray:
     """A grid over ``space``'s box (default the paper's four): ``points`` evenly spaced values per
     parameter, bounds included (1 = the box's centre), every combination: ``float32[points**K, K]``
     (first parameter slowest). Raises ``ValueError`` unless ``points >= 1``."""
-    if not isinstance(points, int) or points < 1:
-        raise ValueError(f"points: value {points!r}; allowed: a whole number >= 1")
+    points = validate.whole_number("points", points, 1)
     axes = [np.linspace(lo, hi, points) if points > 1 else np.asarray([(lo + hi) / 2])
             for lo, hi in zip(space.low, space.high, strict=True)]
     return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, space.size).astype(np.float32)

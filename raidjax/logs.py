@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from raidjax import validate
 from raidjax.content import sensed_by
 from raidjax.env import reset, step
 from raidjax.types import HALF_ARENA, RUNNING, Params, State
@@ -90,15 +91,19 @@ def record_episode(key: jax.Array, params: Params, policy: Callable, n_decisions
         policy: ``policy(key, obs, state, params) -> int32[P]``, or with ``weights``
             ``policy(weights, key, obs, state, params)``; a policy with a ``senses`` attribute plays
             with those senses (``raidjax.content.sensed_by``).
-        n_decisions: trace length ``T``; decisions after the episode ended repeat the final
-            state with ``running = False``.
+        n_decisions: trace length ``T``, a whole number >= 1; decisions after the episode ended
+            repeat the final state with ``running = False``.
         weights: ``None`` or the policy's weights (a pytree of arrays; under ``jit`` with
             ``policy`` static, new weights of the same shapes reuse the compiled program).
 
     Returns:
         ``(trace, summary)``: ``Trace`` with leading axis ``T + 1`` (the reset state first) and
         ``episode_summary`` of the final state.
+
+    Raises:
+        ValueError: ``n_decisions`` not a whole number >= 1 (one line).
     """
+    n_decisions = validate.whole_number("n_decisions", n_decisions, 1)
     params = sensed_by(params, policy)  # a trained team plays with the senses it learned on
     k_reset, k_play = jax.random.split(key)
     obs, state = reset(k_reset, params)
@@ -131,12 +136,16 @@ def occupancy_heatmap(pos: jax.Array, mask: jax.Array, bins: int = HEATMAP_BINS)
     Args:
         pos: ``float32[..., 2]`` positions (any leading axes: games, time, players).
         mask: ``bool[...]`` which positions count (e.g. alive players of running decisions).
-        bins: grid size (24 in the paper).
+        bins: grid size, a whole number >= 1 (24 in the paper).
 
     Returns:
         ``float32[bins, bins]`` indexed ``[x_bin, y_bin]``, summing to 1 (all zeros if nothing
         counted).
+
+    Raises:
+        ValueError: ``bins`` not a whole number >= 1 (one line).
     """
+    bins = validate.whole_number("bins", bins, 1)
     cell = grid_cell(pos, bins).reshape(-1, 2)
     w = mask.reshape(-1).astype(jnp.float32)
     counts = jnp.zeros((bins, bins)).at[cell[:, 0], cell[:, 1]].add(w)

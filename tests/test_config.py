@@ -86,3 +86,15 @@ def test_every_mapoca_field_added_since_says_what_older_runs_played_with():
     changed = {"episode_ends": "reference"}
     assert all(ADDED_SETTINGS[k] == getattr(Config(), k) for k in added - set(changed))
     assert all(getattr(Config(), k) == v != ADDED_SETTINGS[k] for k, v in changed.items())
+
+
+def test_replace_and_run_settings_refuse_unknown_names_in_one_line(tmp_path):
+    from trainers.runs import run_ppo_pcgrl
+
+    for cfg in (Config(), PPOConfig()):
+        with pytest.raises(ValueError, match=r"^config: unknown keys \['hiden'\]; known: "):
+            cfg.replace(hiden=8)
+    # a misspelt evaluation setting was ignored; refused before the run folder is made
+    with pytest.raises(ValueError, match=r"^evaluation: unknown keys \['eval_episode'\]; known: "):
+        run_ppo_pcgrl(PPOConfig(), tmp_path / "run", evaluation={"eval_episode": 0})
+    assert not (tmp_path / "run").exists()

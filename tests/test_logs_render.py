@@ -33,6 +33,11 @@ def test_occupancy_heatmap_counts_hand_placed_positions():
     assert hm[0, 23] == pytest.approx(1 / 3)
     assert hm.sum() == pytest.approx(1.0)
     assert np.asarray(occupancy_heatmap(pos, jnp.zeros(4, bool))).sum() == 0.0
+    for bad in (0, 2.5):  # bins 0 returned an empty map
+        with pytest.raises(ValueError, match=rf"^bins: value {bad!r} .*allowed: a whole number >= 1"):
+            occupancy_heatmap(pos, mask, bins=bad)
+    with pytest.raises(ValueError, match=r"^n_decisions: value -1 is too small"):  # was an MLIR error
+        record_episode(jax.random.key(0), raidjax.make_params(), raidjax.policies.heuristic, -1)
 
 
 def test_record_episode_trace_matches_the_summary(recorded):

@@ -327,6 +327,11 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
 
     with pytest.raises(checkpoint.CheckpointError, match="does not exist"):
         load_policy(tmp_path / "nope")
+    for bad in (True, 1.5, -1):  # True indexed a new axis in
+        with pytest.raises(ValueError, match=rf"^seed: value {bad!r} "):
+            load_policy(tmp_path, seed=bad)
+    with pytest.raises(checkpoint.CheckpointError, match="seed: 2 not in the checkpoint's 2 seeds"):
+        load_policy(tmp_path, seed=2)
     (tmp_path / "empty").mkdir()
     with pytest.raises(checkpoint.CheckpointError, match="no finished checkpoint"):
         load_policy(tmp_path / "empty")

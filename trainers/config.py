@@ -193,8 +193,8 @@ class Config:
                              "has 4 heads, no setting changes it)")
 
     def replace(self, **kw) -> Config:
-        """A copy with fields changed (checked again); unknown fields raise ``TypeError``."""
-        return dataclasses.replace(self, **kw)
+        """A copy with fields changed (checked again); an unknown field raises ``ValueError`` naming it."""
+        return dataclasses.replace(self, **known_fields(Config, kw))
 
     def to_dict(self) -> dict:
         """JSON-able dict of every field."""
@@ -355,8 +355,8 @@ class PPOConfig:
         return max(1, self.total_steps // (self.n_arenas * self.n_steps))
 
     def replace(self, **kw) -> PPOConfig:
-        """A copy with fields changed; unknown fields raise ``TypeError``."""
-        return dataclasses.replace(self, **kw)
+        """A copy with fields changed (checked again); an unknown field raises ``ValueError`` naming it."""
+        return dataclasses.replace(self, **known_fields(PPOConfig, kw))
 
     def to_dict(self) -> dict:
         """JSON-able dict of every field."""
@@ -437,4 +437,4 @@ def load_config(preset: str = "cpu", path: str | Path | None = None, *, learner:
     if path is not None:
         data = read_fields(path, cls.__name__)
         cfg = cls.from_dict({**cfg.to_dict(), **(upgrade_ppo_fields(data) if learner == "ppo_pcgrl" else data)})
-    return cfg.replace(**known_fields(cls, {k: v for k, v in overrides.items() if v is not None}))
+    return cfg.replace(**{k: v for k, v in overrides.items() if v is not None})

@@ -32,7 +32,7 @@ import optax
 from flax import struct
 
 import raidjax
-from raidjax import pcg
+from raidjax import pcg, validate
 from raidjax.env import team_reward
 from raidjax.types import LOSS, WIN, Observation, Params, State
 from trainers import checkpoint
@@ -451,8 +451,10 @@ def load_policy(path: str | Path, seed: int = 0, deterministic: bool | None = No
         seed's actor weights (a pytree of arrays).
 
     Raises:
+        ValueError: ``seed`` not a whole number >= 0.
         checkpoint.CheckpointError: missing, incomplete or corrupted checkpoint, or ``seed`` out of range.
     """
+    seed = validate.whole_number("seed", seed, 0, "a whole number >= 0 (which of the run's seeds)")
     weights, config = checkpoint.load_policy_weights(path)
     cfg = Config.from_dict(config)
     n_seeds = jax.tree.leaves(weights)[0].shape[0]

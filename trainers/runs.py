@@ -245,7 +245,8 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
         seed: base PRNG seed. chunk: updates per jitted chunk (progress and checkpoint period).
         resume, max_chunks: as ``run_mapoca``.
         evaluation: ``eval_episodes`` (0 skips it), ``eval_gen_games``, ``eval_games``,
-            ``greedy``, ``no_baselines`` (defaults 8, 100, 300, False, False); may change on resume.
+            ``greedy``, ``no_baselines`` (defaults 8, 100, 300, False, False; another key raises
+            ``ValueError`` naming it); may change on resume.
         tester: a trained MA-POCA run folder playing the playtests (seed 0, sampled actions)
             instead of PT-HR, in training and evaluation; or a loaded ``(policy, weights)`` pair
             (``trainers.mapoca.load_policy``, ``raidjax.policies.OrHeuristic``).
@@ -256,8 +257,11 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
         or ``{"stopped_at_update": u}`` when ``max_chunks`` stopped it.
     """
     t_start = time.perf_counter()
-    ev = {"eval_episodes": 8, "eval_gen_games": 100, "eval_games": 300, "greedy": False, "no_baselines": False,
-          **(evaluation or {})}
+    ev = {"eval_episodes": 8, "eval_gen_games": 100, "eval_games": 300, "greedy": False, "no_baselines": False}
+    unknown = sorted(set(evaluation or {}) - set(ev))
+    if unknown:
+        raise ValueError(f"evaluation: unknown keys {unknown}; known: {sorted(ev)}")
+    ev.update(evaluation or {})
     settings = {"trainer": "ppo_pcgrl", "preset": preset, "seeds": seeds, "seed": seed, "chunk": chunk,
                 "config": config.to_dict(), "evaluation": ev}
     team = {}

@@ -269,10 +269,17 @@ def next_episode(key: jax.Array, state: State, params: Params) -> tuple[Observat
 def step_autoreset(key: jax.Array, state: State, actions: jax.Array, params: Params):
     """``step``, then start the arena's next episode (``next_episode``) if this one ended.
 
-    Returns the same tuple as ``step``; when ``done``, ``obs`` and ``state`` are those of the
-    new episode and ``info`` also carries ``final_observation`` (the ``Observation`` the
-    episode ended on) and ``final_result``. ``info["final_observation"]`` equals ``obs`` when
-    not done.
+    Args:
+        key: PRNG key (split into ``step``'s and ``next_episode``'s).
+        state: the arena's ``State``.
+        actions: ``int32[P]`` one action per player, as in ``step``.
+        params: the arena's ``Params``.
+
+    Returns:
+        ``(obs, state, reward: float32[P], done: bool[], info)`` as ``step``; when ``done``, ``obs`` and
+        ``state`` are those of the new episode. ``info`` also carries ``final_observation`` (the
+        ``Observation``, leading axis ``P``, the ended episode last saw; equals ``obs`` when not done)
+        and ``final_result`` (``int32[]``, the step's ``result`` before any reset).
     """
     k_step, k_reset = jax.random.split(key)
     new, reward, done, info = _play(k_step, state, actions, params)

@@ -86,12 +86,17 @@ class OrHeuristic:
 
     @property
     def senses(self) -> str | None:
+        """The wrapped policy's ``senses`` (``"raidjax"`` or ``"reference"``), ``None`` if it has none."""
         return getattr(self.policy, "senses", None)
 
     @staticmethod
     def weights(policy_weights, scripted: bool):
         """The weights that make ``OrHeuristic(policy)`` play ``policy`` with ``policy_weights``
-        (``scripted=False``) or PT-HR (``True``; ``policy_weights`` only give the shapes)."""
+        (``scripted=False``) or PT-HR (``True``; ``policy_weights`` only give the shapes).
+
+        Returns:
+            ``(bool[] scripted, policy_weights)``, the tuple ``__call__`` takes as ``weights``.
+        """
         return jnp.bool_(scripted), policy_weights
 
     def __call__(self, weights, key: jax.Array, obs: Observation, state: State, params: Params) -> jax.Array:

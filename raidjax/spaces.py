@@ -46,7 +46,12 @@ class Box:
     dtype: type
 
     def sample(self, key: jax.Array) -> jax.Array:
-        """A uniform draw (bounded boxes; unbounded dimensions draw from [-1, 1])."""
+        """A uniform draw (bounded boxes; unbounded dimensions draw from [-1, 1]).
+
+        Returns:
+            ``dtype[shape]``: ``bool`` boxes draw each element true with probability 1/2; others
+            draw ``float32`` and cast to ``dtype``.
+        """
         if self.dtype == jnp.bool_:
             return jax.random.bernoulli(key, 0.5, self.shape)
         low, high = (-1.0 if np.isinf(self.low) else self.low), (1.0 if np.isinf(self.high) else self.high)
@@ -73,6 +78,8 @@ class Spaces:
             axis ``P`` (features unbounded, masks in {0, 1}).
         flat_observation: ``Box`` of the observation's ``flat()``, ``float32[P, D]`` (D = 9 (P - 1) +
             186 for the reference observation: 204 for 3 players).
+        heuristic_action: ``ACTION_HEURISTIC`` (10), the action id that hands a player to the
+            built-in PT-HR script for one decision (outside ``action``; ``step`` accepts it).
     """
 
     n_players: int

@@ -105,7 +105,12 @@ def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: 
     agent's return, as ML-Agents' buffer rows are agent experiences; ``episode_ends="reference"``).
 
     Args:
+        params: ``{"actor": ..., "critic": ...}`` network weights (the differentiated argument).
         batch: ``[M, P, ...]`` decisions (fields as ``Batch``).
+        actor, critic: the flax modules of ``params`` (``make_networks``).
+        clip_eps: PPO ratio clip ε, also the half-width of the value and baseline clips.
+        ent_coef: entropy coefficient β (a float or ``float32[]``; traced when annealed).
+        value_rows: ``"decisions"`` or ``"agents"`` (above; forced to ``"agents"`` when ``agent`` is given).
         agent: ``None`` (every player of each decision is a sample) or ``int32[M]``: row ``r`` is
             the experience of player ``agent[r]`` in decision ``r`` only (``Config.minibatch_rows
             = "agents"``, ML-Agents' rows); the value loss is then over rows.
@@ -404,9 +409,11 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
 
 
 def make_train(config: Config, base_params: Params | None = None):
-    """``train(key: uint32[2]) -> (Runner, metrics)``: a whole run, pure and jittable; vmap it
-    over keys to train seeds together. ``metrics`` holds one row per chunk (``[num_chunks]``;
-    per-update values are reduced on device), so its size never depends on the chunk length."""
+    """``train(key) -> (Runner, metrics)``: a whole run, pure and jittable; vmap it over keys to
+    train seeds together. ``key``: a typed PRNG key or a raw ``uint32[2]`` one (``Runner.key`` takes
+    its kind). ``metrics``: a dict of ``float32[num_chunks]`` (``[S, num_chunks]`` vmapped over ``S``
+    seeds), one row per chunk: losses and statistics averaged over the chunk's updates, the episode
+    counts and sums (``EPISODE_KEYS``) summed; its size never depends on the chunk length."""
     return make_trainer(config, base_params).train
 
 

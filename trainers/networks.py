@@ -274,8 +274,15 @@ class Critic(nn.Module):
 def sample_actions(key, logits: jax.Array, alive: jax.Array, deterministic: bool = False):
     """Sample from masked logits ``[..., P, A]``; dead players get action 0.
 
+    Args:
+        key: PRNG key (typed or raw ``uint32[2]``); unused when ``deterministic``.
+        logits: ``float32[..., P, A]`` masked logits (``Actor``'s; invalid actions at ``NEG``).
+        alive: ``bool[..., P]``, the players that act.
+        deterministic: take each player's argmax instead of sampling (static Python bool).
+
     Returns:
-        ``(actions int32[..., P], logp float32[..., P])``.
+        ``(actions int32[..., P], logp float32[..., P])``: ``logp`` is the log-probability of the
+        returned action (of action 0 for dead players).
     """
     a = jnp.argmax(logits, -1) if deterministic else draws.categorical(key, logits)
     a = jnp.where(alive, a, 0).astype(jnp.int32)

@@ -49,6 +49,19 @@ class ActorCritic(nn.Module):
 
 
 class Transition(NamedTuple):
+    """One rollout step of ``N = n_arenas`` generator episodes (``[T, N, ...]`` once stacked by the
+    rollout scan, ``[T * N, ...]`` in the minibatches; ``K = config.space.size``).
+
+    Attributes:
+        obs: ``float32[N, obs_size]`` observation acted on.
+        action: ``int32[N, K]`` choices in 0..4.
+        logp: ``float32[N]`` joint log-probability of ``action``.
+        value: ``float32[N]`` critic value of ``obs``.
+        reward: ``float32[N]`` shaped reward: ``(env reward - edit_penalty * valid) * reward_scale``.
+        done: ``bool[N]`` the episode ended with this step.
+        valid: ``bool[N]`` an edit, not a reset call (``info["valid"]``); the loss masks the rest.
+    """
+
     obs: jax.Array
     action: jax.Array
     logp: jax.Array
@@ -76,9 +89,10 @@ def env_params(config: PPOConfig, target=None, tester: Callable = policies.heuri
 
 def edit_penalty(config: PPOConfig, action: jax.Array, old: pcg.PCGState, new: pcg.PCGState) -> jax.Array:
     """Learner-side cost of one edit in env reward units: ``edit_cost`` per tick of ``action``
-    (``int32[..., 4]``), plus ``goal_cost`` times the change of the squared distance to the goal
-    from ``old`` to ``new`` (``PCGState`` with matching batch shape); over an episode the goal part
-    sums to ``goal_cost`` times the final minus the start squared distance to the goal.
+    (``int32[..., K]``, ``K = config.space.size``), plus ``goal_cost`` times the change of the
+    squared distance to the goal from ``old`` to ``new`` (``PCGState`` with matching batch shape);
+    over an episode the goal part sums to ``goal_cost`` times the final minus the start squared
+    distance to the goal.
     Returns ``float32[...]`` (meaningless on reset transitions, which the learner masks)."""
     ticks = jnp.abs(jnp.asarray(pcg.env.TICK_FRACTIONS)[action]).sum(-1)
     space = config.space
@@ -87,7 +101,8 @@ def edit_penalty(config: PPOConfig, action: jax.Array, old: pcg.PCGState, new: p
 
 
 def _logp_entropy(logits, action):
-    """Joint log-probability and entropy of the 4 independent branches: ``float32[...]`` each."""
+    """Joint log-probability and entropy of the K independent branches (``logits float32[..., K, 5]``,
+    ``action int32[..., K]``): ``float32[...]`` each."""
     lp = jax.nn.log_softmax(logits)
     logp = jnp.take_along_axis(lp, action[..., None], -1)[..., 0].sum(-1)
     ent = (-(jnp.exp(lp) * lp).sum(-1)).sum(-1)
@@ -103,14 +118,17 @@ def make_train(config: PPOConfig, tester: Callable = policies.heuristic, tester_
             ``env_params``; default PT-HR, the paper's).
 
     Returns:
-        ``train(key, target=None) -> (runner, metrics)`` (jittable, vmappable), with helpers as
-        attributes: ``train.init(key, target) -> runner`` (every arena on an ended placeholder,
-        ``raidjax.pcg.env.awaiting_reset``: its first rollout step is its reset) and
-        ``train.update(runner, target, weights=tester_weights) -> (runner, metrics)`` (one PPO
-        update; ``weights``: the tester's, an argument so that a program given them as one plays
-        other weights of the same shapes without compiling again). ``runner`` is a
-        dict pytree (``params``, ``opt_state``, ``env_state``, ``obs``, ``key`` data, ``update``);
-        ``metrics`` holds per-update scalars (leading axis ``num_updates`` in ``train``).
+        ``train(key, target=None) -> (runner, metrics)`` (jittable, vmappable; ``key`` a typed PRNG
+        key or a raw ``uint32[2]``; ``target`` ``None``, the config's, or ``float32[2]`` ``(low, high)``
+        as in ``env_params``), with helpers as attributes: ``train.init(key, target) -> runner``
+        (every arena on an ended placeholder, ``raidjax.pcg.env.awaiting_reset``: its first rollout
+        step is its reset) and ``train.update(runner, target, weights=tester_weights) -> (runner,
+        metrics)`` (one PPO update; ``weights``: the tester's, an argument so that a program given
+        them as one plays other weights of the same shapes without compiling again). ``runner`` is a dict pytree
+        (``params``, ``opt_state``, ``env_state`` ``PCGState [N]``, ``obs`` ``float32[N, obs_size]``,
+        ``key`` ``uint32[2]`` key data, ``update`` ``int32[]``); ``metrics`` holds per-update scalars,
+        ``float32[]`` (``episodes``: ``int32[]``; ``final_error``, ``edits``, ``yield``: NaN when no
+        episode ended), ``[num_updates]`` in ``train``.
 
     Warns (``RuntimeWarning``) on CPU when ``XLA_FLAGS`` lacks
     ``--xla_cpu_enable_concurrency_optimized_scheduler=false``: several learners vmapped together

@@ -242,8 +242,17 @@ def make_pcg_params(
 
 
 def measure(key: jax.Array, params: PCGParams, skill: jax.Array, n_games: int | None = None) -> jax.Array:
-    """Win rate ``float32[]`` of ``skill`` over ``n_games`` (default ``params.n_games``) games of
-    ``params.tester``."""
+    """Win rate of ``skill`` over ``n_games`` games of ``params.tester``.
+
+    Args:
+        key: PRNG key of the playtest.
+        params: ``PCGParams``.
+        skill: ``float32[K]`` values of the edited parameters (``K = params.space.size``).
+        n_games: games to play (static); ``None`` (or 0): ``params.n_games``.
+
+    Returns:
+        ``float32[]``, the share of games won (draws and losses count as not won).
+    """
     wins = play_outcomes(key, params.game, skill, n_games or params.n_games, params.tester, params.tester_weights,
                          params.space)
     return jnp.mean(wins.astype(jnp.float32))
@@ -265,7 +274,16 @@ def reward_fn(target: jax.Array, w_prev: jax.Array, w_new: jax.Array) -> jax.Arr
 
 
 def in_band(params: PCGParams, target: jax.Array, w: jax.Array) -> jax.Array:
-    """``|w - t| <= band`` (with a 1e-6 tolerance for float rounding): ``bool``."""
+    """``|w - t| <= band`` (with a 1e-6 tolerance for float rounding).
+
+    Args:
+        params: ``PCGParams`` (its ``band``, ``float32[]``).
+        target: ``float32[...]`` target win rates.
+        w: ``float32[...]`` win rates, broadcastable with ``target``.
+
+    Returns:
+        ``bool[...]``, the broadcast shape of ``target`` and ``w``.
+    """
     return jnp.abs(w - target) <= params.band + 1e-6
 
 
@@ -363,7 +381,7 @@ def awaiting_reset(params: PCGParams) -> tuple[jax.Array, PCGState]:
 
 
 def advance(state: PCGState, skill: jax.Array, w: jax.Array, params: PCGParams) -> tuple[PCGState, jax.Array]:
-    """Book one edit whose skill ``float32[4]`` measured win rate ``w`` (``float32[]``, over
+    """Book one edit whose skill ``float32[K]`` measured win rate ``w`` (``float32[]``, over
     ``n_games`` games): count it, pool ``w`` with the earlier games when ``pool_repeats`` and the
     skill is unchanged, pay ``reward_fn(t, state.win_rate, w)`` with that (pooled) ``w``, end the
     episode at ``max_edits`` or, unless ``strict_length``, inside the band.
@@ -394,7 +412,9 @@ def step(key: jax.Array, state: PCGState, action: jax.Array, params: PCGParams):
 
     Returns:
         ``(obs, state, reward, done, info)``: ``float32[obs_size]``, ``PCGState``, ``float32[]``,
-        ``bool[]``, dict with ``win_rate``, ``edits``, ``reached``, ``valid``.
+        ``bool[]``, and a dict of scalars: ``win_rate`` (``float32[]``, the new, possibly pooled,
+        measurement), ``edits`` (``int32[]``), ``reached`` (``bool[]``, ``PCGState.reached``) and
+        ``valid`` (``bool[]``, always true here).
     """
     skill = apply_action(state.skill, action, params.space)
     new, reward = advance(state, skill, measure(key, params, skill), params)
@@ -410,8 +430,11 @@ def step_autoreset(key: jax.Array, state: PCGState, action: jax.Array, params: P
         key, state, action, params: as in ``step``.
 
     Returns:
-        ``(obs, state, reward, done, info)`` as ``step``; a reset call pays 0, is not done and
-        has ``info["valid"] = False``. ``info["final_error"]`` is ``|t - w|`` (meaningful where done).
+        ``(obs, state, reward, done, info)`` as ``step`` (``float32[obs_size]``, ``PCGState``,
+        ``float32[]``, ``bool[]``); a reset call pays 0, is not done and has ``info["valid"] = False``.
+        ``info`` holds ``step``'s ``win_rate`` (``float32[]``), ``edits`` (``int32[]``), ``reached``
+        and ``valid`` (``bool[]``), and ``final_error`` (``float32[]``, ``|t - w|`` of the new state;
+        meaningful where done).
     """
     k_play, fresh = unmeasured_reset(key, params)
     skill = jnp.where(state.done, fresh.skill, apply_action(state.skill, action, params.space))

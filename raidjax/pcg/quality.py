@@ -2,12 +2,13 @@
 plus the playtest-noise measurement.
 
 ``generate`` runs any generator policy ``policy(policy_params, key, obs, state, params) ->
-int32[4]`` (``raidjax.pcg.pcg_rd``, ``pcg_hr`` or a trained PPO policy) for E
-episodes per target, all episodes in parallel, and keeps each episode's last skill: either with
-the generator's own last measurement (``eval_games=0``, the paper's protocol) or re-measured
-with ``eval_games`` games (raidjax's protocol). The metric functions are plain numpy on the
-returned arrays; ``group_size`` cuts every (method, target) group to one size before a metric
-(``equal_groups``), as the reference notebook's ``groupby(...).sample(n=300, random_state=1)``.
+int32[K]`` (one choice per edited parameter, ``K = params.space.size``; ``raidjax.pcg.pcg_rd``,
+``pcg_hr`` or a trained PPO policy) for E episodes per target, all episodes in parallel, and
+keeps each episode's last skill: either with the generator's own last measurement
+(``eval_games=0``, the paper's protocol) or re-measured with ``eval_games`` games (raidjax's
+protocol). The metric functions are plain numpy on the returned arrays; ``group_size`` cuts every
+(method, target) group to one size before a metric (``equal_groups``), as the reference
+notebook's ``groupby(...).sample(n=300, random_state=1)``.
 """
 
 from __future__ import annotations
@@ -143,10 +144,11 @@ def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=Non
             measurement (``params.n_games`` games), so ``win_rate == gen_win_rate``.
 
     Returns:
-        numpy dict over ``n = T * E`` episodes: ``target`` [n], ``skill`` [n, 4] (the last measured
-        skill), ``win_rate`` [n] (its result, see ``eval_games``), ``gen_win_rate`` [n] (the generator's
-        last measurement), ``edits`` [n], ``reached`` [n] (the band was reached) and ``goal`` [n, 4] (its style
-        goal; the start skill unless ``params.goal_axis``).
+        numpy dict over ``n = T * E`` episodes (``K = params.space.size``): ``target`` ``float32[n]``,
+        ``skill`` ``float32[n, K]`` (the last measured skill), ``win_rate`` ``float32[n]`` (its result,
+        see ``eval_games``), ``gen_win_rate`` ``float32[n]`` (the generator's last measurement),
+        ``edits`` ``int32[n]``, ``reached`` ``bool[n]`` (the band was reached) and ``goal``
+        ``float32[n, K]`` (its style goal; the start skill unless ``params.goal_axis``).
     """
     out = _generate(key, policy, policy_params, params, jnp.asarray(targets, jnp.float32), episodes, eval_games,
                     episode_params)
@@ -219,7 +221,7 @@ def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, thresh
               group_size: int | None = None, seed: int = 1, min_kept: int = 2) -> dict:
     """Diversity (PROTOCOLS.md §11): keep skills with error < ``threshold``, leave out groups that
     kept fewer than ``min_kept``, optionally cut every other group to one size, min-max normalise
-    the 4 parameters over the pooled (cut) set, fit PCA on it, then per group the SD of each
+    the K parameters over the pooled (cut) set, fit PCA on it, then per group the SD of each
     parameter and of PC1.
 
     Args:
@@ -236,12 +238,12 @@ def diversity(skills: np.ndarray, errors: np.ndarray, groups: np.ndarray, thresh
             to its smallest one.
 
     Returns:
-        ``{group: {"n", "kept", "param_sd": [4], "pc1_sd", "pc1_own_sd"}}`` for every group with a
-        kept skill: ``kept`` skills under the threshold, ``n`` of them measured (0 for a group left
-        out; SD ddof 0; NaN where ``n`` < 2). ``pc1_own_sd`` is the SD along the group's own first
-        principal axis (same normalisation): the pooled axis follows whichever method spreads most,
-        so it is reported beside ``pc1_sd`` as a check that a lead does not come from the choice of
-        axis.
+        ``{group: {"n", "kept", "param_sd": [K], "pc1_sd", "pc1_own_sd"}}`` for every group with a
+        kept skill (``param_sd``: a list of K floats): ``kept`` skills under the threshold, ``n`` of
+        them measured (0 for a group left out; SD ddof 0; NaN where ``n`` < 2). ``pc1_own_sd`` is the
+        SD along the group's own first principal axis (same normalisation): the pooled axis follows
+        whichever method spreads most, so it is reported beside ``pc1_sd`` as a check that a lead
+        does not come from the choice of axis.
     """
     if min_kept < 2:
         raise ValueError(f"min_kept: {min_kept} skills cannot have an SD; use 2 or more")
@@ -317,8 +319,9 @@ def summarize(gens: dict, protocol: Protocol | None = None, min_kept: int = 2) -
 
     Returns:
         ``{method: {"controllability": controllability(...), "yield", "edits_mean", "edits_sd",
-        "pc1_sd_mean", "pc1_own_sd_mean", "param_sd_mean": [4] | None, "diversity": {target: ...}}}``
-        (means over the targets whose group is measured, ``diversity``; NaN where none is).
+        "pc1_sd_mean", "pc1_own_sd_mean", "param_sd_mean": [K] | None, "diversity": {target: ...}}}``
+        (means over the targets whose group is measured, ``diversity``; NaN where none is; ``[K]``: a
+        list, one float per edited parameter).
     """
     pr = PROTOCOLS["raidjax"] if protocol is None else protocol
     skills, errs, groups = [], [], []

@@ -68,10 +68,12 @@ class Space:
 
     @property
     def size(self) -> int:
+        """``K``, the number of edited parameters (``int``)."""
         return len(self.knobs)
 
     @property
     def names(self) -> tuple[str, ...]:
+        """``tuple[str]`` of length ``K``: each parameter as written (``"skill1.range=1:20"``)."""
         return tuple(k.name for k in self.knobs)
 
     @property
@@ -81,14 +83,18 @@ class Space:
 
     @property
     def low(self) -> np.ndarray:
+        """Lower bounds, numpy ``float32[K]``."""
         return np.asarray([k.low for k in self.knobs], np.float32)
 
     @property
     def high(self) -> np.ndarray:
+        """Upper bounds, numpy ``float32[K]``."""
         return np.asarray([k.high for k in self.knobs], np.float32)
 
     @property
     def easier(self) -> np.ndarray:
+        """Numpy ``float32[K]`` of +1 / -1 / 0: the sign that makes the raid easier for the players
+        (``EASIER_FIELDS``; 0: PCG-HR leaves the parameter alone)."""
         return np.asarray([k.easier for k in self.knobs], np.float32)
 
     def apply(self, game: Params, values: jax.Array) -> Params:

@@ -46,7 +46,8 @@ from raidjax.wrappers.common import ArenaState, start, step_arena
 
 
 class _RaidView(Environment):
-    """What both views share; subclasses say how actions, observations and rewards map."""
+    """What both views share; subclasses say how actions, observations and rewards map. ``P``: players;
+    ``D``: one player's ``Observation.flat()`` width (``obs_dim``); ``A``: ``config.n_actions``."""
 
     def __init__(self, params: Params | None = None):
         self._default = make_params() if params is None else params
@@ -69,18 +70,25 @@ class _RaidView(Environment):
         raise NotImplementedError
 
     def reset_env(self, key: jax.Array, params: Params):
+        """``reset`` without the default content: ``(obs, ArenaState)``, ``obs`` the learner's view
+        (``float32[P * D]`` for the team, ``float32[D]`` for a player)."""
         obs, state = start(key, params)
         return self._observation(obs), state
 
     @partial(jax.jit, static_argnames=("self",))
     def reset(self, key: jax.Array, params: Params | None = None):
-        """``(obs, state)`` of a new arena with content ``params`` (default: the constructor's)."""
+        """``(obs, ArenaState)`` of a new arena with content ``params`` (default: the constructor's);
+        ``obs``: ``float32[P * D]`` (``RaidTeamEnv``) or ``float32[D]`` (``RaidPlayerEnv``)."""
         return self.reset_env(key, self.default_params if params is None else params)
 
     @partial(jax.jit, static_argnames=("self",))
     def step(self, key: jax.Array, state: ArenaState, action, params: Params | None = None):
-        """One decision; auto-resets to the arena's next episode. Returns ``(obs, state, reward,
-        terminated, truncated, info)`` (gymnax 1.0)."""
+        """One decision; auto-resets to the arena's next episode. ``action``: ``int[]`` (a joint id for
+        the team, the player's action id for a player). Returns ``(obs, state, reward: float32[],
+        terminated: bool[], truncated: bool[], info)`` (gymnax 1.0), ``obs`` as ``reset``'s and
+        ``info`` as the module docstring says (``final_observation`` shaped as ``obs``, ``result``
+        ``int32[]``, ``returned_episode`` ``bool[]``, per player ``alive`` ``bool[P]``,
+        ``damage_dealt`` ``float32[P]``, ``back_attack`` ``int32[P]``)."""
         params = self.default_params if params is None else params
         state = state.replace(params=params)
         k_act, k_step = jax.random.split(key)
@@ -92,23 +100,31 @@ class _RaidView(Environment):
         return self._observation(obs), new, self._reward(reward, info), terminated, truncated, info
 
     def step_env(self, key, state, action, params):
+        """``step`` as gymnax's ``step_env`` tuple, auto-reset included: ``(obs, state, reward:
+        float32[], terminated: bool[], info)`` (``truncated`` only in ``info``)."""
         obs, new, reward, terminated, _, info = self.step(key, state, action, params)
         return obs, new, reward, terminated, info
 
     def is_terminated(self, state: ArenaState, params: Params) -> jax.Array:
+        """``bool[]``: ``state``'s episode ended in a win or a loss."""
         return (state.game.result == WIN) | (state.game.result == LOSS)
 
     def is_truncated(self, state: ArenaState, params: Params) -> jax.Array:
+        """``bool[]``: ``state``'s episode ended in a draw (the ``max_decisions`` limit)."""
         return state.game.result == DRAW
 
     def get_obs(self, state: ArenaState, params=None, key=None) -> jax.Array:
+        """The learner's observation of ``state`` (content: ``params``, default the state's own),
+        shaped as ``reset``'s; ``key`` is unused."""
         return self._observation(observe(state.game, state.params if params is None else params))
 
     def observation_space(self, params: Params | None = None) -> gspaces.Box:
+        """``Box`` of the learner's observation (unbounded ``float32``; the subclasses give its shape)."""
         raise NotImplementedError
 
     @property
     def name(self) -> str:
+        """``"raidjax-RaidTeamEnv"`` or ``"raidjax-RaidPlayerEnv"``."""
         return "raidjax-" + type(self).__name__
 
 
@@ -121,12 +137,15 @@ class RaidTeamEnv(_RaidView):
 
     @property
     def num_actions(self) -> int:
+        """Joint actions, ``A ** P`` (1000 for three players under raidjax's action space)."""
         return self.default_params.config.n_actions**self.n_players
 
     def action_space(self, params: Params | None = None) -> gspaces.Discrete:
+        """``Discrete(A ** P)``: one joint id, ``int[]``."""
         return gspaces.Discrete(self.num_actions)
 
     def observation_space(self, params: Params | None = None) -> gspaces.Box:
+        """Unbounded ``Box`` of ``float32[P * D]``, every player's ``flat()`` row, player 0 first."""
         return gspaces.Box(-jnp.inf, jnp.inf, (self.n_players * self.obs_dim,), jnp.float32)
 
     def decode(self, action: jax.Array, params: Params | None = None) -> jax.Array:
@@ -165,12 +184,15 @@ class RaidPlayerEnv(_RaidView):
 
     @property
     def num_actions(self) -> int:
+        """The player's actions, ``A = config.n_actions`` (10, or 8 under the reference action space)."""
         return self.default_params.config.n_actions
 
     def action_space(self, params: Params | None = None) -> gspaces.Discrete:
+        """``Discrete(A)``: one action id, ``int[]``."""
         return gspaces.Discrete(self.num_actions)
 
     def observation_space(self, params: Params | None = None) -> gspaces.Box:
+        """Unbounded ``Box`` of ``float32[D]``, the player's ``flat()`` row."""
         return gspaces.Box(-jnp.inf, jnp.inf, (self.obs_dim,), jnp.float32)
 
     def _observation(self, obs: Observation) -> jax.Array:

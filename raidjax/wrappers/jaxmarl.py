@@ -64,14 +64,16 @@ class RaidMultiAgentEnv(MultiAgentEnv):
 
     @partial(jax.jit, static_argnums=(0,))
     def reset(self, key: jax.Array, params: Params | None = None) -> tuple[dict, ArenaState]:
-        """``(obs, state)`` of a new arena; ``params`` (one arena's) defaults to the constructor's."""
+        """``(obs, ArenaState)`` of a new arena, ``obs`` ``{agent: float32[D]}``; ``params`` (one arena's)
+        defaults to the constructor's."""
         obs, state = start(key, self.default_params if params is None else params)
         return self._split(obs.flat()), state
 
     @partial(jax.jit, static_argnums=(0,))
     def step(self, key: jax.Array, state: ArenaState, actions: dict, reset_state: ArenaState | None = None):
         """One decision of every player; auto-resets (to ``reset_state`` if given, else to the
-        arena's next episode with its own content). Returns ``(obs, state, rewards, dones, infos)``."""
+        arena's next episode with its own content). ``actions``: ``{agent: int[] or int[1]}``.
+        Returns ``(obs, state, rewards, dones, infos)`` as ``step_env``'s (``obs`` after the reset)."""
         obs, state, rewards, dones, infos = self.step_env(key, state, actions)
         if reset_state is not None:
             ended = dones["__all__"]
@@ -81,7 +83,18 @@ class RaidMultiAgentEnv(MultiAgentEnv):
         return obs, state, rewards, dones, infos
 
     def step_env(self, key: jax.Array, state: ArenaState, actions: dict):
-        """One decision with the auto-reset to the arena's next episode built in."""
+        """One decision with the auto-reset to the arena's next episode built in.
+
+        Returns:
+            ``(obs, state, rewards, dones, infos)``: ``obs`` ``{agent: float32[D]}`` (the new
+            episode's when it ended), ``ArenaState``, ``rewards`` ``{agent: float32[]}``, ``dones``
+            ``{agent: bool[], "__all__": bool[]}``, and ``infos`` a dict of ``[P]`` arrays (one entry
+            per agent): ``terminated``, ``truncated``, ``returned_episode``, ``alive`` (``bool[P]``),
+            ``result``, ``back_attack`` (``int32[P]``), ``damage_dealt`` (``float32[P]``).
+
+        Raises:
+            ValueError: an agent's action missing or not of shape ``[]`` or ``[1]``; as ``check_actions``.
+        """
         acts = check_actions(jnp.stack([self._agent_action(actions, a) for a in self.agents]), state.params)
         obs, new, reward, terminated, truncated, info, _ = step_arena(key, state, acts)
         ended = terminated | truncated
@@ -127,8 +140,10 @@ class RaidMultiAgentEnv(MultiAgentEnv):
 
     @property
     def name(self) -> str:
+        """``"raidjax"``."""
         return "raidjax"
 
     @property
     def agent_classes(self) -> dict:
+        """``{"player": ["player_0", ..., "player_{P-1}"]}``: one class, every agent (one shared policy)."""
         return {"player": self.agents}

@@ -99,7 +99,7 @@ def diversity_rows(summ: dict) -> list[dict]:
         paper = PAPER_DIVERSITY.get(m, {})
         per = []
         for t in pm.TARGETS:
-            d = s["diversity"].get(f"{t:.1f}", {"n": 0, "kept": 0, "param_sd": [np.nan] * 4, "pc1_sd": np.nan,
+            d = s["diversity"].get(pm.target_label(t), {"n": 0, "kept": 0, "param_sd": [np.nan] * 4, "pc1_sd": np.nan,
                                                 "pc1_own_sd": np.nan})
             vals = list(d["param_sd"]) + [d["pc1_sd"]]
             per.append(vals + [d["pc1_own_sd"]])

@@ -243,6 +243,19 @@ def test_diversity_leaves_out_groups_that_kept_too_few_and_cuts_the_rest_to_one_
         pm.diversity(skills, errors, groups, min_kept=1)
 
 
+def test_summarize_keeps_targets_closer_than_a_tenth_apart_in_their_own_groups():
+    # 0.15 and 0.2 were both labelled "0.2" (one decimal) in diversity, while controllability, which
+    # rounds to 6 decimals, kept them apart.
+    rng = np.random.default_rng(0)
+    t = np.repeat(np.float32([0.15, 0.2, 0.5]), 3)
+    gen = {"target": t, "skill": rng.uniform(0, 1, (9, 4)).astype(np.float32), "win_rate": t, "gen_win_rate": t,
+           "edits": np.full(9, 5), "reached": np.ones(9, bool)}
+    out = pm.summarize({"PPO": gen}, pm.PROTOCOLS["paper"])["PPO"]
+    assert sorted(out["diversity"]) == ["0.15", "0.2", "0.5"] and all(v["kept"] == 3 for v in out["diversity"].values())
+    assert len(out["controllability"]["per_target"]) == 3
+    assert [pm.target_label(x) for x in pm.TARGETS] == [f"{x:.1f}" for x in pm.TARGETS]  # the tables' labels
+
+
 def test_pc1_on_the_pooled_axis_and_on_each_groups_own_axis():
     # normalised (range, cool time): group a at (0, 0) and (1, 0), group b at (0.5, 0) and (0.5, 1).
     # Pooled: var(range) = 0.125 < var(cool) = 0.1875, covariance 0, so the pooled axis is cool time:

@@ -308,6 +308,13 @@ def win_rate_noise(key: jax.Array, skill, n_games_list=(25, 50, 100, 300), repea
     return out
 
 
+def target_label(t) -> str:
+    """A target win rate's key in ``summarize``'s ``diversity``: rounded to 6 decimals as
+    ``controllability`` groups targets (``"0.1"`` ... ``"0.7"`` for ``TARGETS``; 0.15 and 0.2 stay
+    two groups)."""
+    return f"{round(float(t), 6):g}"
+
+
 def summarize(gens: dict, protocol: Protocol | None = None, min_kept: int = 2) -> dict:
     """Controllability, yield and diversity (pooled normalisation and PCA over all methods) per
     method, episodes kept and groups cut as ``protocol`` says.
@@ -329,7 +336,7 @@ def summarize(gens: dict, protocol: Protocol | None = None, min_kept: int = 2) -
         k = np.asarray(g["edits"]) >= pr.diversity_min_edits
         skills.append(g["skill"][k])
         errs.append(np.abs(g["target"] - g["win_rate"])[k])
-        groups += [f"{name}|{t:.1f}" for t in g["target"][k]]
+        groups += [f"{name}|{target_label(t)}" for t in g["target"][k]]
     div = diversity(np.concatenate(skills), np.concatenate(errs), np.asarray(groups), group_size=pr.group_size,
                     seed=pr.seed, min_kept=min_kept)
     size = pr.group_size

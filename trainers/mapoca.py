@@ -58,7 +58,7 @@ class Runner:
     episode: jax.Array  # int32[N] episodes each arena has finished (the redraw cadence)
     ep_return: jax.Array  # float32[N] team return of the running episodes
     ep_length: jax.Array  # int32[N]
-    key: jax.Array  # uint32[2] raw PRNG key
+    key: jax.Array  # PRNG key of the kind train was given: raw uint32[2] or typed
     update: jax.Array  # int32[] updates done
 
 
@@ -212,8 +212,9 @@ def begin_episodes(next_keys: jax.Array, fresh_key: jax.Array, p: float, done: j
     is the second half of ``raidjax.step_autoreset``.
 
     Args:
-        next_keys: ``uint32[N, 2]`` per-arena keys of ``next_episode`` (``step_autoreset``'s
-            second split of its key); fresh_key: PRNG key of the fresh-start draws; p: static.
+        next_keys: ``[N]`` per-arena PRNG keys of ``next_episode`` (raw ``uint32[N, 2]`` or typed, as the
+            runner's; ``step_autoreset``'s second split of its key); fresh_key: PRNG key of the
+            fresh-start draws; p: static.
         done: ``bool[N]``; state: ``State [N]`` as the decision left it; params: ``Params [N]``,
             the content of the episodes that begin (a redrawn skill already written in).
 

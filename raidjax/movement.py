@@ -70,7 +70,7 @@ def turned(state: State, actions: jnp.ndarray, dt: float) -> jnp.ndarray:
 @lane_function
 def learner_moves(state: State, actions: jnp.ndarray, params: Params, dt: float, fwd: jnp.ndarray):
     """Where ``actions: int32[P, ...]`` move the players in ``dt`` seconds under the velocity-impulse
-    model (GAME.md §9), given the unit vectors ``fwd: float32[P, 2, ...]`` of their turned headings
+    model (GAME.md §4), given the unit vectors ``fwd: float32[P, 2, ...]`` of their turned headings
     (``heading_vec(turned(...))``).
 
     Returns:

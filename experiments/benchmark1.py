@@ -17,7 +17,7 @@ Protocols (``PROTOCOLS``; PROTOCOLS.md §11):
   reference content (players' cool time 0.5: ``RL_GENERALIZATION/JSON/train/*.json``,
   ``population/*.json``) and are tested on the test content (cool time 1.0:
   ``test/skill_{easy,hard}.json``); an arena redraws its range every second episode
-  (``trainers.curriculum.next_ranges``, one draw per arena shared by its players).
+  (``trainers.curriculum.next_draws``, one draw per arena shared by its players).
 - ``raidjax``: train on the test content too (seen and unseen content differ only in the skill
   range) and redraw the range at every episode; raidjax's observation and 10 masked actions.
 - ``paper-raidjax-senses``: ``paper`` with raidjax's observation and actions (the observation

@@ -285,7 +285,7 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
     assert (np.asarray(m1["grad_norm"]) > 0).all() and (np.asarray(m1["value_explained_variance"]) <= 1).all()
     assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves((m1, m_straight, straight.params)))
     assert set(np.unique(np.asarray(straight.skills))) <= {9.0, 13.0}
-    # every finished episode is counted in its arena (the range redraw cadence, next_ranges)
+    # every finished episode is counted in its arena (the range redraw cadence, next_draws)
     assert np.array_equal(np.asarray(straight.episode.sum(1)), np.asarray(m1["episodes"] + m_straight["episodes"]))
     assert not np.array_equal(np.asarray(straight.params["actor"]["params"]["pi"]["kernel"]),
                               np.asarray(r0.params["actor"]["params"]["pi"]["kernel"]))

@@ -17,8 +17,8 @@ from experiments import benchmark1 as b1
 from experiments import benchmark2 as b2
 from raidjax import pcg
 from raidjax.pcg import quality as pm
-from trainers.config import PRESETS, from_agent_steps
-from trainers.curriculum import next_ranges
+from trainers.config import PRESETS, Config, from_agent_steps
+from trainers.curriculum import draw_skills, next_draws
 from trainers.generate import method_policy
 
 # --- MA-POCA paper preset (item 6) ---------------------------------------------------------
@@ -51,14 +51,16 @@ def test_paper_preset_mirrors_the_reference_yaml():
 
 
 def _redraw_steps(done_rows, every):
-    """Feed ``next_ranges`` one step at a time with a one-value range set equal to the step
-    number, so ``ranges`` records the step of each arena's last redraw."""
+    """Feed the trainer's redraw (``next_draws``, then ``draw_skills`` where it says so) one step at a
+    time with a one-value range set equal to the step number, so ``ranges`` records the step of each
+    arena's last redraw."""
     n = len(done_rows[0])
     ranges, episode = jnp.zeros(n), jnp.zeros(n, jnp.int32)
     seen = []
     for t, row in enumerate(done_rows, start=1):
-        ranges, episode, redrawn = next_ranges(jax.random.PRNGKey(t), ranges, episode, jnp.asarray(row),
-                                               jnp.asarray([float(t)]), every)
+        episode, redrawn = next_draws(episode, jnp.asarray(row), every)
+        drawn = draw_skills(jax.random.PRNGKey(t), Config(), jnp.asarray([float(t)]), n)[:, 0]
+        ranges = jnp.where(redrawn, drawn, ranges)
         seen.append(np.asarray(redrawn))
     return np.asarray(ranges), np.asarray(episode), np.stack(seen)
 

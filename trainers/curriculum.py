@@ -41,30 +41,21 @@ def range_table(ranges, size: int | None = None) -> jax.Array:
     return jnp.asarray(ranges * (size // len(ranges)), jnp.float32)
 
 
-def next_ranges(key: jax.Array, ranges: jax.Array, episode: jax.Array, done: jax.Array, range_set: jax.Array,
-                every: int) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """The reference's per-arena range redraw (``MMORPGEnvController.ResetScene``:
-    ``if (n_episode++ % 2 == 0) RequestMAConfig``), for ``every = 2``.
+def next_draws(episode: jax.Array, done: jax.Array, every: int) -> tuple[jax.Array, jax.Array]:
+    """The reference's per-arena redraw cadence (``MMORPGEnvController.ResetScene``:
+    ``if (n_episode++ % 2 == 0) RequestMAConfig``, ``every = 2``) for any drawn content.
 
     An arena that ends an episode counts it; when its count of finished episodes is a multiple of
-    ``every`` it draws a new range from ``range_set`` (one draw per arena, shared by its players).
-    The start of the run is a draw (``init``), so an arena's episodes 1..every share a range.
+    ``every`` it draws its next content (one draw per arena, shared by its players: ``draw_skills``).
+    The start of the run is a draw, so an arena's episodes 1..every share one.
 
     Args:
-        key: PRNG key; ranges: ``float32[N]``; episode: ``int32[N]`` finished episodes before this
-        step; done: ``bool[N]`` an episode ended this step; range_set: ``float32[K]``; every: static.
+        episode: ``int32[N]`` finished episodes before this step; done: ``bool[N]`` an episode
+            ended this step; every: static.
 
     Returns:
-        ``(ranges float32[N], episode int32[N], redrawn bool[N])``.
+        ``(episode int32[N], redrawn bool[N])``.
     """
-    episode, redrawn = next_draws(episode, done, every)
-    fresh = jax.random.choice(key, range_set, ranges.shape)
-    return jnp.where(redrawn, fresh, ranges), episode, redrawn
-
-
-def next_draws(episode: jax.Array, done: jax.Array, every: int) -> tuple[jax.Array, jax.Array]:
-    """The redraw cadence of ``next_ranges`` for any drawn content: ``(episode int32[N], redrawn
-    bool[N])`` from finished-episode counts ``int32[N]`` and ``done`` ``bool[N]``."""
     episode = episode + done.astype(jnp.int32)
     return episode, done & (episode % every == 0)
 

@@ -252,7 +252,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         base_params: default content of ``init`` (default: the reference content; under
             ``config.content_box`` the content generator's, ``raidjax.pcg.base_game()``).
         redraw_ranges: draw new skill ranges (every ``config.redraw_every`` episodes of an
-            arena, ``next_ranges``; static; default: when ``config.skill_ranges`` has several
+            arena, ``next_draws``; static; default: when ``config.skill_ranges`` has several
             values). ``init(key, content, range_set)`` may give each vmapped run its own content
             and range set; set this ``True`` when any run's set has several values.
         fixed_content: play ``init``'s content exactly as given, with no range or box draw

@@ -10,7 +10,8 @@ runs over the arenas, and reductions over units or slots are a few vector operat
 One arena's ``State`` and ``Params`` already are lane arrays with no lanes (a unit's position
 ``pos[u]`` is ``float32[2]``). ``batched`` gives a lane function a ``vmap`` rule that moves the arena
 axis last instead of first (``jax.custom_batching.custom_vmap``), so ``jax.vmap(raidjax.step)`` runs
-the lane program over the arenas; it is also where the backend is decided, once per program.
+the lane program over the arenas; it is also where the backend is decided, when the program is
+traced (once per process and shapes for ``raidjax.step``).
 
 Helpers (shapes: ``x[N, *R, *L]`` with ``L`` the lanes; indices are lane arrays): ``pick`` (gather
 along the leading axis), ``one_hot``, ``argmin``, ``first_true`` and reductions over leading axes as
@@ -125,8 +126,8 @@ def first_true(x: jax.Array) -> jax.Array:
 
 def batched(fn, full: tuple[int, ...] = ()):
     """``fn`` (a lane function of pytrees with a static keyword ``fast: bool``) as a function of one
-    arena's arguments whose ``vmap`` puts the arena axis last; here the backend is decided, once per
-    call (each compiled program that calls it).
+    arena's arguments whose ``vmap`` puts the arena axis last; here the backend is decided, each time
+    it is traced.
 
     ``fn(*args, fast=...)`` must work on lane arrays with any trailing lanes and return lane arrays,
     each output carrying the lanes (depending on a batched argument or one at ``full``);
@@ -144,7 +145,7 @@ def batched(fn, full: tuple[int, ...] = ()):
 
     ``custom_vmap`` traces ``fn`` for one arena at every call, also where only its rule runs: a
     process that plays only vmapped games traces the sub-step twice (docs/DESIGN.md, "The lane
-    program", has the cost).
+    program on JAX's public API", has the cost).
     """
 
     # Traced through ``jax.jit``: JAX keeps the traced program per argument shapes, so every later

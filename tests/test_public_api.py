@@ -77,6 +77,12 @@ def private_uses(source: str) -> list[str]:
         elif isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings:
             if PRIVATE_TEXT.match(node.value):
                 found.add(f"{node.lineno}: {node.value!r}")
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "getattr":
+            # getattr(jax, "interpreters"): an attribute read by its name
+            owner = _dotted(node.args[0], aliases) if len(node.args) >= 2 else None
+            attr = node.args[1].value if owner and isinstance(node.args[1], ast.Constant) else None
+            if isinstance(attr, str) and _is_private(f"{owner}.{attr}"):
+                found.add(f"{node.lineno}: {owner}.{attr}")
     return sorted(found)
 
 
@@ -100,6 +106,9 @@ def test_no_private_jax_module():
     "import importlib\nm = importlib.import_module('jax._src.xla_bridge')",
     "import sys\nm = sys.modules['jax._src.xla_bridge']",
     "import jax\nm = getattr(jax, '_src')",
+    "import jax\nm = getattr(jax, 'interpreters')",
+    "import jax as j\nm = getattr(j, 'extend').core",
+    "import jax\nm = getattr(jax.core, 'Primitive')",
 ])
 def test_a_planted_private_use_is_caught(source):
     assert private_uses(source)

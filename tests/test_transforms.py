@@ -24,8 +24,9 @@ def _players_x_after_a_step(pos):
 
 
 def test_grad_and_jvp_through_step():
-    # A forward step of the same shapes first: its trace, kept by jit, must not be reused for the
-    # derivatives (it holds the scheduling conditionals; this order once failed in CI).
+    # A forward step of the same shapes first: jit keeps its trace, scheduling conditionals included,
+    # and the derivatives reuse it; its custom_jvp must send them to the plain program (this order
+    # once failed in CI).
     jax.jit(raidjax.step)(jax.random.key(1), STATE, acts(NOOP), P)
     g = jax.jit(jax.grad(_players_x_after_a_step))(STATE.pos)
     assert np.isfinite(np.asarray(g)).all()

@@ -1,5 +1,5 @@
-"""Repository-level checks: the import layers point one way with no cycle, and the README's Python
-snippets run as written."""
+"""Repository-level checks: the import layers point one way with no cycle, the README's Python
+snippets run as written, documented commands exist, and the docs' links and anchors resolve."""
 
 from __future__ import annotations
 
@@ -180,3 +180,48 @@ def test_each_layer_imports_only_what_its_install_provides():
                 if IMPORT_TO_DIST.get(top, top) not in layer:
                     bad.append(f"{name} imports {top}")
     assert not bad, bad
+
+
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading: lower case, code marks and punctuation dropped, spaces
+    as hyphens."""
+    text = re.sub(r"[^\w\- ]", "", heading.replace("`", "").strip().lower())
+    return text.replace(" ", "-")
+
+
+def _anchors(path: Path) -> set[str]:
+    """Every heading anchor of a Markdown file (a repeated heading gets ``-1``, ``-2``, ... as on GitHub)."""
+    text = re.sub(r"```.*?```", "", path.read_text(), flags=re.S)
+    seen: dict[str, int] = {}
+    for heading in re.findall(r"^#+\s+(.*)$", text, flags=re.M):
+        s = _slug(heading)
+        seen[s] = seen.get(s, -1) + 1
+        yield s if seen[s] == 0 else f"{s}-{seen[s]}"
+
+
+def broken_links(path: Path) -> list[str]:
+    """Relative links of a Markdown file whose file or heading anchor does not exist."""
+    text = re.sub(r"```.*?```", "", path.read_text(), flags=re.S)
+    bad = []
+    for target in re.findall(r"\]\(([^)\s]+)\)", text):
+        if re.match(r"[a-z]+:", target):
+            continue
+        file, _, anchor = target.partition("#")
+        dest = (path.parent / file) if file else path
+        if not dest.exists():
+            bad.append(f"{target}: no such file")
+        elif anchor and dest.suffix == ".md" and anchor not in set(_anchors(dest)):
+            bad.append(f"{target}: no such heading")
+    return bad
+
+
+def test_doc_links_and_anchors_resolve():
+    assert _slug("The step on JAX's public API, before and after") == "the-step-on-jaxs-public-api-before-and-after"
+    assert len(DOCS) > 10
+    assert {str(p.relative_to(ROOT)): b for p in DOCS if (b := broken_links(p))} == {}
+
+
+def test_a_broken_link_or_anchor_is_caught(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("# Results, `cpu` scale\n\n[ok](#results-cpu-scale) [gone](other.md) [typo](#result)\n")
+    assert broken_links(page) == ["other.md: no such file", "#result: no such heading"]

@@ -91,7 +91,7 @@ SCALES = {
                    ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2, hidden=8, layers=1,
                             n_games=4, max_edits=4),
                    chunk=1, episodes=1, gen_games=4, max_edits=3, eval_games=4),
-    # About half an hour on 2 CPU cores (docs/results/balancing.md): a 2 M-decision tester and 3 specialists
+    # About 40 min on 2 CPU cores (docs/results/balancing.md): a 2 M-decision tester and 3 specialists
     # with the same budget, generators of 2 048 edits at 20 games per measurement, 6 episodes per target.
     "cpu": Scale(tester=dict(total_steps=2_000_000), heldout=3, grid=3, grid_games=40,
                  ppo=dict(n_arenas=16, n_steps=8, total_steps=2048, n_games=20), chunk=2,

@@ -189,6 +189,14 @@ def test_smoke_loop_on_a_mixed_team_with_eight_parameters(tmp_path, capsys):
     assert summary["closer_under_learned"] in (True, False)
     assert balance.main(["--scale", "smoke", "--out", str(out), "--players", *MIXED, "--parameters", *EIGHT,
                          "--resume"])["seconds"] == summary["seconds"]  # a finished run is not redone
+    # the mixed team's tester is refused for three mages' content, before a run folder is made
+    from trainers.config import PPOConfig
+    from trainers.runs import run_ppo_pcgrl
+
+    with pytest.raises(ValueError, match=r"was trained for players \['warrior', 'mage', 'priest'\]; the generator "
+                                         r"edits content for \['mage', 'mage', 'mage'\]"):
+        run_ppo_pcgrl(PPOConfig(), tmp_path / "mismatch", tester=out / "tester")
+    assert not (tmp_path / "mismatch").exists()
 
 
 def test_parse_space_names_the_bad_value_type():

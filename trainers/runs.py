@@ -248,8 +248,9 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
             ``greedy``, ``no_baselines`` (defaults 8, 100, 300, False, False; another key raises
             ``ValueError`` naming it); may change on resume.
         tester: a trained MA-POCA run folder playing the playtests (seed 0, sampled actions)
-            instead of PT-HR, in training and evaluation; or a loaded ``(policy, weights)`` pair
-            (``trainers.mapoca.load_policy``, ``raidjax.policies.OrHeuristic``).
+            instead of PT-HR, in training and evaluation, trained for ``config.players`` (else
+            ``ValueError``); or a loaded ``(policy, weights)`` pair (``trainers.mapoca.load_policy``,
+            ``raidjax.policies.OrHeuristic``).
 
     Returns:
         The result (also ``out/result.json`` and the last stdout line): ``mean_error`` (PPO),
@@ -268,6 +269,11 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
     if tester is not None:  # loaded (and checked) before the run folder is touched
         loaded = isinstance(tester, tuple)
         policy, weights = tester if loaded else load_policy(tester, seed=0, deterministic=False)
+        if not loaded:  # a team trained for other players would play them without a word
+            trained_for = tuple(Config.from_dict(checkpoint.load_policy_weights(tester)[1]).players)
+            if trained_for != tuple(config.players):
+                raise ValueError(f"tester: {tester} was trained for players {list(trained_for)}; the generator "
+                                 f"edits content for {list(config.players)} (train the tester with the same --players)")
         team = {"tester": policy, "tester_weights": weights}
         # the weights' digest decides whether a resume continues the same run; the folder may move
         settings.update(tester=checkpoint.digest(weights))

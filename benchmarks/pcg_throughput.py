@@ -136,7 +136,7 @@ def playtest_beside(games: int, groups: int | None = None, skills=None):
         params = raidjax.make_params(skill_range=13.0)
         play = lambda k: raidjax.playtest(k, params, raidjax.policies.heuristic, games)  # noqa: E731
     else:
-        lo, hi = np.asarray(pcg.env.low()), np.asarray(pcg.env.high())
+        lo, hi = pcg.PAPER_SPACE.low, pcg.PAPER_SPACE.high
         if skills is None:
             skills = lo + np.random.default_rng(0).random((groups, lo.size)) * (hi - lo)
         contents = jax.vmap(lambda s: pcg.PAPER_SPACE.apply(pcg.base_game(), s))(jax.numpy.asarray(skills))

@@ -164,7 +164,7 @@ def _parse(argv=None) -> argparse.Namespace:
                     "default: the scale's, 0 = the paper's reward)")
     ap.add_argument("--goal-cost", type=float, help="with --goal-axis: PPO learner penalty per squared tick of "
                     "distance to the episode's style goal (default 0 = off)")
-    ap.add_argument("--goal-axis", type=pcg.env.axis_arg, help="a style goal per episode at one end of this axis, 4 "
+    ap.add_argument("--goal-axis", type=pcg.goals.axis_arg, help="a style goal per episode at one end of this axis, 4 "
                     "comma-separated signs in {-1,0,1} for range,cool_time,cast_time,coefficient (1,1,1,1 = heavy "
                     "vs light skills) (default: none)")
     ap.add_argument("--ent-coef", type=float, help="PPO entropy coefficient (default: the preset's)")

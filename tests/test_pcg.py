@@ -17,7 +17,7 @@ TICK = (HIGH - LOW) / 6
 
 
 def test_ticks_and_clipping():
-    np.testing.assert_allclose(np.asarray(pcg.env.tick()), [19 / 6, 0.1 / 6, 1 / 6, 0.5 / 6], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(pcg.space.tick()), [19 / 6, 0.1 / 6, 1 / 6, 0.5 / 6], rtol=1e-6)
     mid = jnp.asarray((10.0, 0.55, 1.0, 0.75))
     for c, frac in enumerate((-1.0, -0.5, 0.0, 0.5, 1.0)):
         out = np.asarray(pcg.env.apply_action(mid, jnp.full(4, c, jnp.int32)))

@@ -39,7 +39,7 @@ def test_goal_penalty_telescopes_to_the_change_of_distance_to_the_goal():
     # range, cast, coefficient high; cool low
     goal = jnp.asarray(pcg.PAPER_SPACE.high, jnp.float32).at[1].set(pcg.PAPER_SPACE.low[1])
     st = _state(skill=(10.5, 0.55, 1.0, 0.75)).replace(goal=goal)
-    start_d2 = float(pcg.env.squared_ticks(st.skill, goal))
+    start_d2 = float(pcg.goals.squared_ticks(st.skill, goal))
     total = 0.0
     for a in ([4, 0, 4, 4], [3, 2, 2, 0], [0, 4, 2, 2]):  # toward, partly back, away
         a = jnp.asarray(a, jnp.int32)
@@ -49,7 +49,7 @@ def test_goal_penalty_telescopes_to_the_change_of_distance_to_the_goal():
             assert step_cost < 0
         total += step_cost
         st = new
-    assert total == pytest.approx(0.5 * (float(pcg.env.squared_ticks(st.skill, goal)) - start_d2), rel=1e-4)
+    assert total == pytest.approx(0.5 * (float(pcg.goals.squared_ticks(st.skill, goal)) - start_d2), rel=1e-4)
     # by hand: the goal is 3 ticks from the start in every parameter (range 9.5 / (19/6), cool 0.05 /
     # (0.1/6), cast 0.5 / (1/6), coefficient 0.25 / (0.5/6)), so d^2 = 4 * 9 = 36 at the start.
     assert start_d2 == pytest.approx(36.0, rel=1e-4)
@@ -99,7 +99,7 @@ def test_goal_axis_in_the_learner_config_and_on_the_command_line():
     for bad in ({"goal_axis": (1, 1, 1, 1)}, {"goal_cost": 0.5}):  # a style goal needs both
         with pytest.raises(ValueError, match="a style goal needs both"):
             PPOConfig(**bad)
-    assert pcg.env.parse_axis("1,1,-1,0") == (1, 1, -1, 0)
+    assert pcg.goals.parse_axis("1,1,-1,0") == (1, 1, -1, 0)
     assert _args(["--goal-cost", "1", "--goal-axis", "1,1,-1,0"]).goal_axis == (1, 1, -1, 0)
     for bad in ("2,0,0,0", "a,b,c,d"):
         with pytest.raises(SystemExit):

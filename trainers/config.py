@@ -330,7 +330,7 @@ class PPOConfig:
             object.__setattr__(self, name, tuple(value))
         space = self.space  # checks the names against the team (ValueError naming the parameter)
         if self.goal_axis is not None:  # JSON gives a list; the env needs a hashable static field
-            object.__setattr__(self, "goal_axis", pcg.env.check_axis(self.goal_axis, space.size))
+            object.__setattr__(self, "goal_axis", pcg.goals.check_axis(self.goal_axis, space.size))
         if (self.goal_axis is None) != (self.goal_cost == 0):
             raise ValueError(f"goal_cost: value {self.goal_cost} with goal_axis {self.goal_axis}: a style goal "
                              "needs both (goal_cost > 0 and an axis such as (1, 1, 1, 1)), or neither")

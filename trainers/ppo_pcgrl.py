@@ -96,7 +96,7 @@ def edit_penalty(config: PPOConfig, action: jax.Array, old: pcg.PCGState, new: p
     Returns ``float32[...]`` (meaningless on reset transitions, which the learner masks)."""
     ticks = jnp.abs(jnp.asarray(pcg.env.TICK_FRACTIONS)[action]).sum(-1)
     space = config.space
-    to_goal = pcg.env.squared_ticks(new.skill, new.goal, space) - pcg.env.squared_ticks(old.skill, old.goal, space)
+    to_goal = pcg.goals.squared_ticks(new.skill, new.goal, space) - pcg.goals.squared_ticks(old.skill, old.goal, space)
     return config.edit_cost * ticks + config.goal_cost * to_goal
 
 

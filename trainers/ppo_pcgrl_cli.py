@@ -47,7 +47,7 @@ def _args(argv=None):
     ap.add_argument("--goal-cost", type=float,
                     help="with --goal-axis: learner penalty per squared tick of distance to the episode's style goal "
                          "(default: the preset's)")
-    ap.add_argument("--goal-axis", type=pcg.env.axis_arg,
+    ap.add_argument("--goal-axis", type=pcg.goals.axis_arg,
                     help="style goals at the two ends of this axis, 4 comma-separated signs in {-1,0,1} for "
                          "range,cool_time,cast_time,coefficient (1,1,1,1 = heavy vs light) (default: none)")
     ap.add_argument("--ent-coef", type=float, help="entropy bonus coefficient (default: the preset's)")

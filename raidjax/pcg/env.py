@@ -29,7 +29,6 @@ its own batch of ``n_games`` playtests.
 
 from __future__ import annotations
 
-import argparse
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -40,30 +39,15 @@ from flax import struct
 
 from raidjax import policies, validate
 from raidjax.content import REFERENCE_PLAYERS, make_params
+from raidjax.pcg.goals import check_axis, draw_goal
 from raidjax.pcg.measurement import play_outcomes
-from raidjax.pcg.space import PAPER_SPACE, Space, make_space
+from raidjax.pcg.space import PAPER_SPACE, Space, high, low, make_space, tick
 from raidjax.playtest import check_args
 from raidjax.types import Params
 
 N_PARAMS, N_CHOICES = PAPER_SPACE.size, 5
 NOOP_ACTION = 2  # choice 2 = 0 ticks on a branch
 TICK_FRACTIONS = (-1.0, -0.5, 0.0, 0.5, 1.0)
-HEAVY_VS_LIGHT = (1, 1, 1, 1)  # a style axis: all four parameters high, or all four low
-
-
-def low(space: Space = PAPER_SPACE) -> jax.Array:
-    """Lower bounds ``float32[K]`` of ``space`` (default the paper's four)."""
-    return jnp.asarray(space.low)
-
-
-def high(space: Space = PAPER_SPACE) -> jax.Array:
-    """Upper bounds ``float32[K]`` of ``space`` (default the paper's four)."""
-    return jnp.asarray(space.high)
-
-
-def tick(space: Space = PAPER_SPACE) -> jax.Array:
-    """One tick per parameter, ``(max - min) / 6``: ``float32[K]``."""
-    return (high(space) - low(space)) / 6.0
 
 
 @struct.dataclass
@@ -90,7 +74,7 @@ class PCGParams:
             environment). Each episode draws a goal at one end of the axis: the +1 parameters at
             their upper bound and the -1 ones at their lower bound, or the reverse (one coin); a
             0-signed parameter gets its own coin. The observation then ends with the scaled offset
-            ``(goal - skill) / (high - low)``. ``HEAVY_VS_LIGHT`` has two strengthening and two
+            ``(goal - skill) / (high - low)``. ``raidjax.pcg.goals.HEAVY_VS_LIGHT`` has two strengthening and two
             weakening parameters (``Space.easier``), so both ends suit any target.
         tester: the playtesting team (static): a hashable ``policy(key, obs, state, params) ->
             int32[P]`` (default PT-HR, ``raidjax.policies.heuristic``, the paper's), or, with
@@ -158,42 +142,6 @@ def base_game(players: tuple[str, ...] = REFERENCE_PLAYERS) -> Params:
             _BASE[players] = make_params(players=list(players), player_overrides=[
                 GENERATOR_MAGE if c == "mage" else {} for c in players])
     return _BASE[players]
-
-
-def check_axis(goal_axis, size: int = N_PARAMS) -> tuple[int, ...] | None:
-    """``goal_axis`` as a tuple of ints (``None`` stays ``None``); raises ``ValueError`` naming the
-    field, the value and what is allowed unless it is ``size`` signs in {-1, 0, 1}."""
-    if goal_axis is None:
-        return None
-    axis = tuple(goal_axis)
-    if len(axis) != size or any(v not in (-1, 0, 1) for v in axis):
-        raise ValueError(f"goal_axis: value {goal_axis} must be {size} signs, each -1, 0 or +1 "
-                         f"(one per edited parameter{', ' + str(PAPER_SPACE.fields) if size == N_PARAMS else ''})")
-    return tuple(int(v) for v in axis)
-
-
-def parse_axis(text: str) -> tuple[int, ...]:
-    """``"1,0,-1,1"`` -> ``(1, 0, -1, 1)`` for command lines: comma-separated signs, each -1, 0 or 1;
-    how many the edited space needs is ``check_axis``'s (the space is known later). Raises
-    ``ValueError`` naming the value and what is allowed."""
-    allowed = "comma-separated signs, each -1, 0 or 1, one per edited parameter (the paper's four: " \
-              f"{','.join(PAPER_SPACE.fields)})"
-    try:
-        signs = tuple(int(v) for v in text.split(","))
-    except ValueError:
-        raise ValueError(f"goal_axis: value {text!r}; allowed: {allowed}") from None
-    if any(v not in (-1, 0, 1) for v in signs):
-        raise ValueError(f"goal_axis: value {text!r}; allowed: {allowed}")
-    return signs
-
-
-def axis_arg(text: str) -> tuple[int, ...]:
-    """``parse_axis`` as an argparse ``type`` (``--goal-axis 1,1,1,1``): bad input becomes a usage
-    error naming the flag, the value and what is allowed."""
-    try:
-        return parse_axis(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def make_pcg_params(
@@ -307,23 +255,6 @@ def obs_size(params: PCGParams) -> int:
     """Length of the observation vector (K to 2K + 3)."""
     return (params.space.size * (1 + int(params.goal_axis is not None))
             + 2 * int(params.observe_target) + int(params.pool_repeats))
-
-
-def squared_ticks(skill: jax.Array, other: jax.Array, space: Space = PAPER_SPACE) -> jax.Array:
-    """Squared distance in ticks, ``sum(((skill - other) / tick)**2)``: ``float32[...]`` for
-    ``float32[..., K]`` inputs. Squared, so that moving several parameters a little costs less
-    than moving one a lot."""
-    return jnp.sum(((skill - other) / tick(space)) ** 2, -1)
-
-
-def draw_goal(key: jax.Array, axis: tuple[int, ...], space: Space = PAPER_SPACE) -> jax.Array:
-    """A style goal at one end of ``axis`` (static, ``check_axis``): ``float32[K]`` (see
-    ``PCGParams.goal_axis``). The keys are folded from ``key`` with their own numbers, so a goal
-    never changes the episode's skill, target or playtests."""
-    upper = jax.random.bernoulli(jax.random.fold_in(key, 13), 0.5, (space.size,))  # 0-signed parameters
-    signs = jnp.asarray(axis, jnp.int32)
-    upper = jnp.where(signs == 0, upper, (signs > 0) == jax.random.bernoulli(jax.random.fold_in(key, 17), 0.5))
-    return jnp.where(upper, high(space), low(space))
 
 
 def _fresh(key: jax.Array, params: PCGParams, target: jax.Array | None):

@@ -193,3 +193,18 @@ def make_space(parameters: Sequence[str] | None = None, players: Sequence[str] =
                          "slot 1 of three mages; name the parameters for another team (e.g. 'mage.skill1.range=1:20', "
                          "'warrior.skill1.coefficient')")
     return PAPER_SPACE
+
+
+def low(space: Space = PAPER_SPACE) -> jax.Array:
+    """Lower bounds ``float32[K]`` of ``space`` (default the paper's four)."""
+    return jnp.asarray(space.low)
+
+
+def high(space: Space = PAPER_SPACE) -> jax.Array:
+    """Upper bounds ``float32[K]`` of ``space`` (default the paper's four)."""
+    return jnp.asarray(space.high)
+
+
+def tick(space: Space = PAPER_SPACE) -> jax.Array:
+    """One tick per parameter, ``(max - min) / 6``: ``float32[K]``."""
+    return (high(space) - low(space)) / 6.0

@@ -12,9 +12,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from trainers.mapoca import Batch, last_seen, loss_fn
+from trainers.mapoca import Batch, loss_fn
 from trainers.networks import Actor, Critic
-from trainers.returns import game_returns, lambda_returns
+from trainers.returns import game_returns, lambda_returns, last_seen
 
 GAMMA, LAM = 0.9, 0.8
 T, END, DEATH = 8, 5, 2  # the game ends with step 5; player 2 dies in step 2; steps 6-7 begin the next game

@@ -2,7 +2,7 @@
 new one. An arena draws a skill range from its run's set (``range_table``), or under
 ``Config.content_box`` a point of the content generator's box, at its start and after every
 ``redraw_every``-th finished episode (the reference's ``MMORPGEnvController.ResetScene``); the
-trainer begins the new episode under the new skill (``trainers.mapoca.begin_episodes``).
+trainer begins the new episode under the new skill (``begin_episodes``).
 """
 
 from __future__ import annotations
@@ -12,9 +12,10 @@ import math
 import jax
 import jax.numpy as jnp
 
+import raidjax
 from raidjax import pcg
 from raidjax.content import with_player_skill
-from raidjax.types import Params
+from raidjax.types import Observation, Params, State
 from trainers.config import Config
 
 RANGE_TABLE = 12  # lcm(1, 2, 3, 4): sets of 1-4 ranges share one table shape, so draws stay uniform
@@ -82,3 +83,40 @@ def where_arenas(mask: jax.Array, new, old):
     """``new`` in the arenas where ``mask: bool[N]`` holds, ``old`` elsewhere (pytrees of ``[N, ...]``
     arrays of the same structure)."""
     return jax.tree.map(lambda a, b: jnp.where(mask.reshape((-1,) + (1,) * (a.ndim - 1)), a, b), new, old)
+
+
+def training_content(cfg: Config, params: Params) -> Params:
+    """``params`` as the learner trains on it: with ``cfg.senses`` and, under ``cfg.random_spawns``,
+    every episode's spawns drawn (``EnvConfig.random_spawns``). Evaluation plays the content as given."""
+    params = raidjax.with_senses(params, cfg.senses)
+    if cfg.random_spawns:
+        params = params.replace(config=params.config.replace(random_spawns=True))
+    return params
+
+
+def begin_episodes(next_keys: jax.Array, fresh_key: jax.Array, p: float, done: jax.Array, state: State,
+                   params: Params) -> tuple[State, Observation]:
+    """The arenas whose episode just ended begin their next one, built and observed once under the
+    content it plays: ``raidjax.next_episode`` (what the arena carries over), or with probability
+    ``p`` (``Config.fresh_starts``) ``raidjax.reset``. With ``p = 0`` and unchanged ``params`` this
+    is the second half of ``raidjax.step_autoreset``.
+
+    Args:
+        next_keys: ``[N]`` per-arena PRNG keys of ``next_episode`` (raw ``uint32[N, 2]`` or typed, as the
+            runner's; ``step_autoreset``'s second split of its key); fresh_key: PRNG key of the
+            fresh-start draws; p: static.
+        done: ``bool[N]``; state: ``State [N]`` as the decision left it; params: ``Params [N]``,
+            the content of the episodes that begin (a redrawn skill already written in).
+
+    Returns:
+        ``(state [N], obs [N])``: the arenas not ``done`` keep ``state`` (observed again).
+    """
+    _, begun = jax.vmap(raidjax.next_episode)(next_keys, state, params)
+    if p > 0:
+        n = done.shape[0]
+        k_coin, k_reset = jax.random.split(fresh_key)
+        fresh = jax.random.uniform(k_coin, (n,)) < p
+        _, reset = jax.vmap(raidjax.reset)(jax.random.split(k_reset, n), params)
+        begun = where_arenas(fresh, reset, begun)
+    state = where_arenas(done, begun, state)
+    return state, jax.vmap(raidjax.observe)(state, params)

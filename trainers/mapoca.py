@@ -37,11 +37,11 @@ from raidjax.env import team_reward
 from raidjax.types import LOSS, WIN, Observation, Params, State
 from trainers import checkpoint
 from trainers.config import Config
-from trainers.curriculum import draw_skills, next_draws, range_table, where_arenas, with_drawn
+from trainers.curriculum import begin_episodes, draw_skills, next_draws, range_table, training_content, with_drawn
 from trainers.gradients import clip_by_global_norm, global_norm
 from trainers.networks import Actor, Critic, sample_actions
 from trainers.reference_networks import ReferenceActor, ReferenceCritic
-from trainers.returns import advantages, explained_variance, game_returns
+from trainers.returns import advantages, explained_variance, game_returns, last_seen
 
 
 @struct.dataclass
@@ -180,56 +180,6 @@ class Trainer(NamedTuple):
 
 
 EPISODE_KEYS = ("episodes", "return_sum", "wins", "draws", "length_sum")
-
-
-def training_content(cfg: Config, params: Params) -> Params:
-    """``params`` as the learner trains on it: with ``cfg.senses`` and, under ``cfg.random_spawns``,
-    every episode's spawns drawn (``EnvConfig.random_spawns``). Evaluation plays the content as given."""
-    params = raidjax.with_senses(params, cfg.senses)
-    if cfg.random_spawns:
-        params = params.replace(config=params.config.replace(random_spawns=True))
-    return params
-
-
-def last_seen(obs: Observation, final: Observation) -> Observation:
-    """``final`` (``[N, P, ...]``, the observation after a step) with every player who died in the
-    step (alive in ``obs``, not in ``final``) seen as in ``obs``: raidjax blanks a dead player's
-    observation, while ML-Agents collects a real one at its death (``Agent.NotifyAgentDone``), which
-    its bootstrap reads (``trainers.returns``)."""
-    died = obs.alive & ~final.alive
-
-    def pick(before, after):
-        return jnp.where(died.reshape(died.shape + (1,) * (after.ndim - 2)), before, after)
-
-    return jax.tree.map(pick, obs, final).replace(alive=final.alive)
-
-
-def begin_episodes(next_keys: jax.Array, fresh_key: jax.Array, p: float, done: jax.Array, state: State,
-                   params: Params) -> tuple[State, Observation]:
-    """The arenas whose episode just ended begin their next one, built and observed once under the
-    content it plays: ``raidjax.next_episode`` (what the arena carries over), or with probability
-    ``p`` (``Config.fresh_starts``) ``raidjax.reset``. With ``p = 0`` and unchanged ``params`` this
-    is the second half of ``raidjax.step_autoreset``.
-
-    Args:
-        next_keys: ``[N]`` per-arena PRNG keys of ``next_episode`` (raw ``uint32[N, 2]`` or typed, as the
-            runner's; ``step_autoreset``'s second split of its key); fresh_key: PRNG key of the
-            fresh-start draws; p: static.
-        done: ``bool[N]``; state: ``State [N]`` as the decision left it; params: ``Params [N]``,
-            the content of the episodes that begin (a redrawn skill already written in).
-
-    Returns:
-        ``(state [N], obs [N])``: the arenas not ``done`` keep ``state`` (observed again).
-    """
-    _, begun = jax.vmap(raidjax.next_episode)(next_keys, state, params)
-    if p > 0:
-        n = done.shape[0]
-        k_coin, k_reset = jax.random.split(fresh_key)
-        fresh = jax.random.uniform(k_coin, (n,)) < p
-        _, reset = jax.vmap(raidjax.reset)(jax.random.split(k_reset, n), params)
-        begun = where_arenas(fresh, reset, begun)
-    state = where_arenas(done, begun, state)
-    return state, jax.vmap(raidjax.observe)(state, params)
 
 
 def make_networks(cfg: Config):

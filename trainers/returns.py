@@ -38,6 +38,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from raidjax.types import Observation
+
 EPISODE_ENDS = ("reference", "win_bootstrapped", "terminal")
 
 
@@ -128,3 +130,16 @@ def explained_variance(pred: jax.Array, target: jax.Array, where: jax.Array | No
 
     v = var(target)
     return jnp.where(v > 0, 1.0 - var(target - pred) / jnp.where(v > 0, v, 1.0), 0.0)
+
+
+def last_seen(obs: Observation, final: Observation) -> Observation:
+    """``final`` (``[N, P, ...]``, the observation after a step) with every player who died in the
+    step (alive in ``obs``, not in ``final``) seen as in ``obs``: raidjax blanks a dead player's
+    observation, while ML-Agents collects a real one at its death (``Agent.NotifyAgentDone``), which
+    its bootstrap reads (``trainers.returns``)."""
+    died = obs.alive & ~final.alive
+
+    def pick(before, after):
+        return jnp.where(died.reshape(died.shape + (1,) * (after.ndim - 2)), before, after)
+
+    return jax.tree.map(pick, obs, final).replace(alive=final.alive)

@@ -186,7 +186,13 @@ def test_smoke_loop_on_a_mixed_team_with_eight_parameters(tmp_path, capsys):
         assert s["generator"] == f["generator"] and int(s["n"]) == f["n"]
         for k in ("target", "learned", "scripted", "gap", "error_learned", "error_scripted"):
             assert float(s[k]) == pytest.approx(f[k])
-    assert summary["closer_under_learned"] in (True, False)
+    # the verdict is what the raw outputs give: under the learned team, whose skills land closer
+    names = list(data["generators"])
+    err = {n: float(np.abs(data["learned"] - data["target"])[data["generator"] == names.index(n)].mean())
+           for n in ("learned", "scripted")}
+    assert summary["learned_error_learned"] == pytest.approx(err["learned"])
+    assert summary["scripted_error_learned"] == pytest.approx(err["scripted"])
+    assert summary["closer_under_learned"] == (err["learned"] < err["scripted"])
     assert balance.main(["--scale", "smoke", "--out", str(out), "--players", *MIXED, "--parameters", *EIGHT,
                          "--resume"])["seconds"] == summary["seconds"]  # a finished run is not redone
     # the mixed team's tester is refused for three mages' content, before a run folder is made

@@ -127,13 +127,13 @@ def test_value_masks_dead_agents(obs3, critic):
 
 def _batch(obs3, actor, a_params, critic, c_params, ratio_factor=1.0) -> Batch:
     """A fixed batch of 3 decisions (agent 2 dead in the second) whose stored log-probabilities
-    are the current ones minus log(ratio_factor), values 0.1 below and baselines 0.3 above."""
+    are the current ones minus log(ratio_factor), values 0.3 below and baselines 0.3 above."""
     actions = jnp.array([[7, 1, 0], [2, 7, 3], [0, 0, 1]], jnp.int32)
     alive = jnp.array([[1, 1, 1], [1, 1, 0], [1, 1, 1]], bool)
     obs = obs3.replace(alive=alive, action_mask=obs3.action_mask | (jnp.arange(10)[None, None] < 8))
     logp = jnp.take_along_axis(jax.nn.log_softmax(actor.apply(a_params, obs)), actions[..., None], -1)[..., 0]
     v, b = critic.apply(c_params, obs, actions)
-    return Batch(obs, actions, logp - jnp.log(ratio_factor), alive, v - 0.1, b + 0.3,
+    return Batch(obs, actions, logp - jnp.log(ratio_factor), alive, v - 0.3, b + 0.3,
                  jnp.array([1.0, -2.0, 0.5])[:, None].repeat(3, 1),
                  jnp.array([[1.0, -1.0, 0.5], [2.0, 0.3, 0.0], [-0.7, 0.2, 1.1]]))
 
@@ -156,10 +156,11 @@ def test_loss_terms_on_fixed_batch(obs3, critic):
     # ratio 1.5: min(1.5 A, 1.2 A) = 1.2 A for A > 0 and 1.5 A for A < 0.
     surr = np.where(adv > 0, 1.2 * adv, 1.5 * adv)
     np.testing.assert_allclose(aux["policy_loss"], -(surr * m).sum() / m.sum(), rtol=1e-5)
-    # Values sit 0.1 above their stored old values (inside the clip), baselines 0.3 below theirs
-    # (outside: clipped to old - 0.2); each term takes the larger of the two squared errors.
+    # Values sit 0.3 above their stored old values and baselines 0.3 below theirs: outside the clip,
+    # so clipped to old + 0.2 = v - 0.1 and old - 0.2 = b + 0.1; each term takes the larger of the
+    # two squared errors.
     g = batch.returns[:, 0]  # the group's return (every column)
-    lv = np.maximum((v - g) ** 2, (v - g) ** 2).mean()
+    lv = np.maximum((v - g) ** 2, (v - 0.1 - g) ** 2).mean()
     lb = (np.maximum((b - g[:, None]) ** 2, (b + 0.3 - 0.2 - g[:, None]) ** 2) * m).sum() / m.sum()
     np.testing.assert_allclose(aux["value_loss"], lv, rtol=1e-5)
     np.testing.assert_allclose(aux["baseline_loss"], lb, rtol=1e-5)

@@ -183,6 +183,18 @@ def test_next_episode_carries_running_cooldowns_of_units_not_deactivated():
     assert [int(st.charges[BOSS, 1]) for st in states] == [1, 1, 1, 2]
     assert [int(st.charges[0, 0]) for st in states] == [1, 1, 2, 2]
     assert int(states[-1].charges[1, 0]) == 1 and not states[-1].recharging.any()
+    # The boss is never deactivated: after a win, its dead self's timers carry all the same.
+    won = ended_state(p)
+    won = won.replace(alive=won.alive.at[BOSS].set(False), hp=won.hp.at[BOSS].set(0.0), result=jnp.int32(WIN))
+    _, s = NEXT(KEY, won, p)
+    assert s.alive[BOSS] and s.recharging[BOSS, 1] and float(s.recharge_left[BOSS, 1]) == pytest.approx(0.3)
+
+
+def test_an_ended_game_reports_what_it_hands_on():
+    # The state set by hand: the boss's slot 2 (index 1) recharging, two projectiles in flight.
+    summary = raidjax.logs.episode_summary(ended_state(params(REF5)))
+    assert np.asarray(summary["boss_recharging"]).tolist() == [False, True, False]
+    assert int(summary["in_flight"]) == 2
 
 
 def test_without_carry_next_episode_starts_with_no_timers():
@@ -199,6 +211,12 @@ def test_reset_exception_keeps_the_boss_and_all_projectiles_but_the_first():
     np.testing.assert_allclose(s.pos[:3], [[-3, -10], [0, -10], [3, -10]])
     assert np.flatnonzero(np.asarray(s.projectiles.live)).tolist() == [5]
     np.testing.assert_allclose(s.projectiles.pos[5], [-5.0, 5.0])
+    # The boss that stays keeps its facing and picks its target from where it stands: player 2 at
+    # (3, -10) is 4.12 from (4, -6), player 1 at (0, -10) 5.66 (from its spawn it would pick player 1).
+    turned = end.replace(heading=end.heading.at[BOSS].set(1.25))
+    _, s = NEXT(KEY, turned, p)
+    assert float(s.heading[BOSS]) == 1.25 and int(s.target[BOSS]) == 2
+    assert int(RESET(KEY, p)[1].target[BOSS]) == 1
     # Nothing in flight: the boss goes back to its spawn.
     empty = end.replace(projectiles=end.projectiles.replace(live=jnp.zeros_like(end.projectiles.live)))
     _, s = NEXT(KEY, empty, p)
@@ -272,7 +290,7 @@ def test_playtest_discards_each_arenas_first_game_under_reference_rules():
     cfg = raidjax.EnvConfig(max_decisions=400)
     p = raidjax.make_params(config=cfg)
 
-    def length_of(s):
+    def length_of(s, p=p):
         for t in range(400):
             _, s, _, done, _ = STEP(jax.random.fold_in(KEY, t), s, acts(NOOP), p)
             if bool(done):
@@ -285,8 +303,11 @@ def test_playtest_discards_each_arenas_first_game_under_reference_rules():
     res = raidjax.playtest(jax.random.key(0), p, raidjax.policies.noop, 4)
     assert (np.asarray(res["outcome"]) == LOSS).all()
     assert (np.asarray(res["length"]) == second).all()
-    res_clean = raidjax.playtest(jax.random.key(0), p.replace(config=cfg.with_rules("clean")), raidjax.policies.noop, 4)
-    assert (np.asarray(res_clean["length"]) != second).all()
+    # Under the clean rules every game starts as a reset one: each is the clean game's first.
+    clean = p.replace(config=cfg.with_rules("clean"))
+    first_clean, _ = length_of(RESET(KEY, clean)[1], clean)
+    res_clean = raidjax.playtest(jax.random.key(0), clean, raidjax.policies.noop, 4)
+    assert (np.asarray(res_clean["length"]) == first_clean).all()
 
 
 def test_rule_presets_and_validation():
@@ -302,3 +323,12 @@ def test_rule_presets_and_validation():
     with pytest.raises(ValueError, match="carry_cooldowns: value 1"):
         raidjax.make_params(config=raidjax.EnvConfig(carry_cooldowns=1))
 
+
+
+def test_a_unit_with_no_max_hp_starts_dead():
+    # GAME.md §2: a unit whose max_hp is 0 starts dead; a dead player sees zeros and may only no-op.
+    p = raidjax.make_params(player_overrides=[{"max_hp": 0}, {}, {}])
+    obs, s = RESET(KEY, p)
+    assert np.asarray(s.alive).tolist() == [False, True, True, True]
+    assert not np.asarray(obs.self_features[0]).any()
+    assert np.asarray(obs.action_mask[0]).tolist() == [True] + [False] * 9

@@ -150,6 +150,17 @@ def test_straight_missile_flies_along_facing_and_is_destroyed_by_walls():
     assert float(out.hp[BOSS]) == 950.0
 
 
+def test_a_straight_missile_flies_through_an_ally_in_its_path():
+    # GAME.md §5: a projectile touches only the units its skill may hit (a damage skill: enemies).
+    # Player 0 at (0, -4.5) faces the boss at (0, 0) with player 1 standing at (0, -2.5) between them;
+    # the straight missile passes player 1 and hits the boss once (the facing test above: 950).
+    p = make(**{"skill1.target_type": 0})
+    s = scenario(p, players=((0.0, -4.5), (0.0, -2.5), (11.0, -11.0)), boss=(0.0, 0.0),
+                 alive=(True, True, False), headings=(math.pi / 2, math.pi / 2, 0.0))
+    out, _ = run(s, p, CAST, 10)
+    assert float(out.hp[BOSS]) == 950.0 and float(out.hp[1]) == 100.0 and not out.projectiles.live.any()
+
+
 @pytest.mark.parametrize("target_type", [0, 1])
 def test_fast_missile_does_not_tunnel_through_a_small_unit(target_type):
     # Speed 50 = 5 units per decision; boss hurtbox ~0.27: the missile's positions at decision

@@ -148,6 +148,7 @@ def test_flat_view_concatenates_every_part():
     ("skill1.range", 13.0, 16, 13.0 / 20),
     ("skill1.cast_time", 1.5, 22, 1.5 / 5),
     ("skill1.coefficient", 1.0, 19, 1.0 * 100 / 100),  # damage = coefficient x spell power, / 100
+    ("haste", 25.0, 22, 0.5 / 1.25 / 5),  # the cast time after haste: 0.5 s / (1 + 25 / 100)
 ])
 def test_skill_features_follow_content(field, value, index, expected):
     p = make(**{field: value})

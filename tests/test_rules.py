@@ -332,3 +332,16 @@ def test_a_unit_with_no_max_hp_starts_dead():
     assert np.asarray(s.alive).tolist() == [False, True, True, True]
     assert not np.asarray(obs.self_features[0]).any()
     assert np.asarray(obs.action_mask[0]).tolist() == [True] + [False] * 9
+
+
+def test_a_homing_missile_vanishes_when_its_target_dies():
+    # GAME.md: homing missiles chase their target and vanish if it dies. A boss missile 10 units from
+    # its target, which is dead, is gone after one decision; the same missile aimed at a live player
+    # is still flying (the breath's speed 20: 2 units per decision).
+    p = params(CLEAN5)
+    for alive0, live_after in ((False, False), (True, True)):
+        s = placed(p, [(-8, -10), (0, -10), (8, -10)], (0, 8), alive=(alive0, True, True), target=1)
+        s = put(s, 0, kind=PROJ_HOMING, pos=jnp.array([-8.0, 0.0]), direction=jnp.array([0.0, -1.0]), owner=BOSS,
+                slot=0, target=0, life=5.0)
+        _, states = play(s, p, acts(NOOP), 1)
+        assert bool(states[0].projectiles.live[0]) is live_after

@@ -345,3 +345,24 @@ def test_a_homing_missile_vanishes_when_its_target_dies():
                 slot=0, target=0, life=5.0)
         _, states = play(s, p, acts(NOOP), 1)
         assert bool(states[0].projectiles.live[0]) is live_after
+
+
+def test_death_cancels_a_cast():
+    # GAME.md §5-6: a unit that dies stops its casts. Player 0 (1 HP, 4 units from the boss) starts
+    # MagicMissile (0.5 s) on decision 1; a boss missile flying at it kills it on decision 2, before
+    # the cast fires on decision 5: no missile of its ever flies and the boss keeps its HP. Without the
+    # boss missile the same cast hits the boss (950 by decision 8).
+    p = params(CLEAN5)
+    for killed in (True, False):
+        s = placed(p, [(0, -4), (-8, -10), (8, -10)], (0, 0), alive=(True, False, False), target=0,
+                   hp=[1.0, 0.0, 0.0, 1000.0])
+        if killed:
+            s = put(s, 0, kind=PROJ_STRAIGHT, pos=jnp.array([0.0, -1.0]), direction=jnp.array([0.0, -1.0]),
+                    owner=BOSS, slot=0, life=5.0)
+        _, states = play(s, p, lambda t: acts(CAST_1 if t == 1 else NOOP, NOOP, NOOP), 8)
+        if killed:
+            assert not states[1].alive[0] and not states[1].casting[0].any()
+            assert not any((st.projectiles.live & (st.projectiles.owner == 0)).any() for st in states)
+            assert float(states[-1].hp[BOSS]) == 1000.0
+        else:
+            assert states[0].casting[0, 0] and float(states[-1].hp[BOSS]) == 950.0

@@ -112,6 +112,24 @@ def test_reset_targets_nearest_player(ref_params):
 
 # --- attack 1: straight missile; attack 2: area ------------------------------------------------
 
+def test_the_boss_re_targets_as_it_fires_and_its_missile_keeps_the_old_facing():
+    # GAME.md §5, §7: as a skill fires the boss re-picks its target (the nearest alive player), but a
+    # straight missile flies along the facing the boss had while casting. The boss faces player 0 at
+    # (0, -5) (its target, 5 away) while player 1 at (3, 0) is nearer (3): the breath (0.1 s) fires on
+    # decision 1 along (0, -1), the target becomes player 1, and the missile (2 units per decision from
+    # decision 2) reaches player 0's front at y = -4.3 in decision 4: 55 damage to player 0, none to 1.
+    p = make(passive_boss=False, boss_overrides={"skill2.range": 1.0, "move_speed": 0.0})
+    s = scenario(p, players=((0.0, -5.0), (3.0, 0.0), (11.0, -11.0)), boss=(0.0, 0.0),
+                 alive=(True, True, False), target=0)
+    out, hist = run(s, p, acts(NOOP), 4)
+    first = hist[0]["state"]
+    assert int(first.target[BOSS]) == 1
+    (slot,) = np.flatnonzero(first.projectiles.live)
+    np.testing.assert_allclose(first.projectiles.direction[slot], [0.0, -1.0], atol=1e-6)
+    assert [float(h["state"].hp[0]) for h in hist] == [100.0, 100.0, 100.0, 45.0]
+    assert float(out.hp[1]) == 100.0
+
+
 def test_attack_1_straight_missile_hits_first_player_on_its_path():
     p = make(passive_boss=False, boss_overrides={"skill2.range": 1.0, "move_speed": 0.0})
     # A (target, distance 3) and B right behind it on the same line, C far aside.

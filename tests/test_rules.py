@@ -144,6 +144,21 @@ def test_boss_keeps_chasing_a_dead_target(keep):
         np.testing.assert_allclose(boss, [0.6, 8.0], atol=1e-4)
 
 
+@pytest.mark.parametrize("keep", [True, False])
+def test_keep_dead_target_casts_at_the_dead_target_until_a_skill_fires(keep):
+    # GAME.md rule table: the reference boss casts at its target after it died, until one of its
+    # skills fires (then it re-targets). A still boss at (0, 0) facing its dead target at (0, -5);
+    # player 1, alive, at (6, 0). The breath (0.1 s) fires in decision 1: along (0, -1) at the dead
+    # player under keep_dead_target, along (1, 0) at player 1 otherwise; both end targeting player 1.
+    cfg = dataclasses.replace(CLEAN5, keep_dead_target=keep)
+    p = params(cfg, passive=False, boss={"move_speed": 0.0, "skill2.range": 1.0})
+    s = placed(p, [(0, -5), (6, 0), (-11, -11)], (0, 0), alive=(False, True, False), target=0)
+    _, states = play(s, p, acts(NOOP), 1)
+    (slot,) = np.flatnonzero(states[0].projectiles.live)
+    np.testing.assert_allclose(states[0].projectiles.direction[slot], [0.0, -1.0] if keep else [1.0, 0.0], atol=1e-5)
+    assert int(states[0].target[BOSS]) == 1
+
+
 # ------------------------------------------------------------------------- next_episode
 
 

@@ -100,6 +100,17 @@ def test_projectile_seven_degrees_right_is_ray_1_only():
     np.testing.assert_allclose(r[2], [0.0, 1.0, 1.0])
 
 
+@pytest.mark.parametrize("radius, seen", [(0.05, 0.2), (1.0, 1.0)])
+def test_a_ray_meets_the_larger_of_the_skill_radius_and_the_prefab_sphere(radius, seen):
+    # Every pooled projectile also carries the prefab's 0.2 trigger sphere (GAME.md §8): a ray meets
+    # whichever of the two co-centred spheres is larger. A projectile 10 straight ahead on ray 0.
+    p = ref_params(boss_overrides={"skill1.projectile_radius": radius})
+    s = scenario(p, players=((0.0, -5.0), (-8.0, -8.0), (8.0, -8.0)), boss=(0.0, 8.0), headings=(UP, UP, UP))
+    s = with_projectile(s, (0.0, 5.0))
+    np.testing.assert_allclose(rays(OBSERVE(s, p).projectile_rays)[0], [1.0, 0.0, (10.0 - seen - 0.5) / 20],
+                               rtol=1e-5)
+
+
 def test_overlapping_projectile_is_not_reported():
     p = ref_params()
     s = scenario(p, players=((0.0, -5.0), (-8.0, -8.0), (8.0, -8.0)), boss=(0.0, 8.0), headings=(UP, UP, UP))

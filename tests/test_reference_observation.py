@@ -100,6 +100,20 @@ def test_projectile_seven_degrees_right_is_ray_1_only():
     np.testing.assert_allclose(r[2], [0.0, 1.0, 1.0])
 
 
+def test_a_live_teammate_row_is_its_position_velocity_hp_and_first_skill():
+    # GAME.md §8, the reference observation: position (absolute) and velocity / 20, HP / 100, then
+    # slot 1's cooldown left (before its first use the reference shows the whole cool time, 0.5 s),
+    # range 5, coefficient 0.5 x spell power 100 and cast time 0.5, divided by 5, 20, 100 and 5.
+    p = ref_params()
+    s = scenario(p, players=((0.0, -5.0), (-8.0, -8.0), (8.0, -8.0)), boss=(0.0, 8.0), headings=(UP, UP, UP),
+                 hp=(None, 40.0, None, None))
+    s = s.replace(vel=s.vel.at[1].set(jnp.array([3.0, 4.0])))
+    obs = OBSERVE(s, p)
+    np.testing.assert_allclose(obs.teammates[0, 0], [-8 / 20, -8 / 20, 3 / 20, 4 / 20, 0.4, 0.5 / 5, 5 / 20, 0.5,
+                                                     0.5 / 5], rtol=1e-6)
+    np.testing.assert_allclose(obs.teammates[1, 0, :2], [0.0, -5 / 20])  # player 0, seen by player 1
+
+
 @pytest.mark.parametrize("radius, seen", [(0.05, 0.2), (1.0, 1.0)])
 def test_a_ray_meets_the_larger_of_the_skill_radius_and_the_prefab_sphere(radius, seen):
     # Every pooled projectile also carries the prefab's 0.2 trigger sphere (GAME.md §8): a ray meets

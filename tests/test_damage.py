@@ -253,3 +253,23 @@ def test_boss_back_attacks_pay_no_bonus():
     hp = series(hist, lambda st: st.hp[0])
     assert sorted(set(hp.tolist()))[:1] == [45.0]  # 100 - 55
     assert int(hist[-1]["state"].back_attacks[BOSS]) == 0
+
+
+def test_the_dice_are_the_hash_the_rulebook_writes_down():
+    # GAME.md §1, "Dice and keys": element n of uniform_dice(k, shape) is a uint32 hash of n seeded by
+    # the two words jax.random.bits(k, (2,), uint32), then (x >> 8) / 2^24. Here in plain Python.
+    def die(n, s0, s1):
+        m = 0xFFFFFFFF
+        x = (n * 0x9E3779B1 + s0) & m
+        x ^= x >> 16
+        x = ((x * 0x85EBCA6B) & m) ^ s1
+        x ^= x >> 13
+        x = (x * 0xC2B2AE35) & m
+        x ^= x >> 16
+        return (x >> 8) / 2**24
+
+    key = jax.random.fold_in(jax.random.key(7), 3)
+    s0, s1 = (int(w) for w in np.asarray(jax.random.bits(key, (2,), jnp.uint32)))
+    got = np.asarray(raidjax.utils.uniform_dice(key, (3, 32, 4)))
+    want = np.asarray([die(n, s0, s1) for n in range(3 * 32 * 4)], np.float32).reshape(3, 32, 4)
+    np.testing.assert_array_equal(got, want)

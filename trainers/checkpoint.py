@@ -233,6 +233,13 @@ def restore(path: str | Path, abstract_state, quarantine: bool = False) -> tuple
     return out.state, dict(out.config), dict(out.meta)
 
 
+def load_config(path: str | Path) -> dict:
+    """The config dict saved with the newest intact (or the given) checkpoint, without its arrays;
+    raises ``CheckpointError`` when there is none."""
+    out, _ = _restore(path, config=ocp.args.JsonRestore())
+    return dict(out.config)
+
+
 def load_policy_weights(path: str | Path) -> tuple[object, dict]:
     """``(policy weights with the leading seed axis, config dict)`` of the newest intact (or the
     given) checkpoint; raises ``CheckpointError`` when there is none."""

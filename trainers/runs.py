@@ -270,7 +270,7 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
         loaded = isinstance(tester, tuple)
         policy, weights = tester if loaded else load_policy(tester, seed=0, deterministic=False)
         if not loaded:  # a team trained for other players would play them without a word
-            trained_for = tuple(Config.from_dict(checkpoint.load_policy_weights(tester)[1]).players)
+            trained_for = tuple(Config.from_dict(checkpoint.load_config(tester)).players)
             if trained_for != tuple(config.players):
                 raise ValueError(f"tester: {tester} was trained for players {list(trained_for)}; the generator "
                                  f"edits content for {list(config.players)} (train the tester with the same --players)")

@@ -4,6 +4,7 @@ snippets run as written, documented commands exist, and the docs' links and anch
 from __future__ import annotations
 
 import ast
+import functools
 import re
 import subprocess
 import sys
@@ -189,14 +190,15 @@ def _slug(heading: str) -> str:
     return text.replace(" ", "-")
 
 
-def _anchors(path: Path) -> set[str]:
+@functools.cache
+def _anchors(path: Path) -> frozenset[str]:
     """Every heading anchor of a Markdown file (a repeated heading gets ``-1``, ``-2``, ... as on GitHub)."""
     text = re.sub(r"```.*?```", "", path.read_text(), flags=re.S)
     seen: dict[str, int] = {}
     for heading in re.findall(r"^#+\s+(.*)$", text, flags=re.M):
         s = _slug(heading)
         seen[s] = seen.get(s, -1) + 1
-        yield s if seen[s] == 0 else f"{s}-{seen[s]}"
+    return frozenset(s if n == 0 else f"{s}-{n}" for s, count in seen.items() for n in range(count + 1))
 
 
 def broken_links(path: Path) -> list[str]:
@@ -210,7 +212,7 @@ def broken_links(path: Path) -> list[str]:
         dest = (path.parent / file) if file else path
         if not dest.exists():
             bad.append(f"{target}: no such file")
-        elif anchor and dest.suffix == ".md" and anchor not in set(_anchors(dest)):
+        elif anchor and dest.suffix == ".md" and anchor not in _anchors(dest.resolve()):
             bad.append(f"{target}: no such heading")
     return bad
 

@@ -177,3 +177,23 @@ def test_heuristic_circles_in_the_coin_flip_direction_near_preferred_distance():
         turned[sign] = ang[-1] - ang[0]
     assert abs(turned[1.0]) > 0.5 and abs(turned[-1.0]) > 0.5  # it really circles
     assert np.sign(turned[1.0]) != np.sign(turned[-1.0])  # opposite directions
+
+
+@pytest.mark.parametrize("speed", [1.0, 1.2])
+def test_heuristic_circles_at_move_speed_radians_per_second(speed):
+    # GAME.md §9: within R a player eases toward a point on the circle of radius R that turns at
+    # move-speed rad/s. Once it trails that point at a steady lag (after 10 s here), its own angle
+    # around the boss turns at the point's rate: 1 and 1.2 rad/s, so the rate is the move speed and
+    # not a constant. (At R = 6 and move speed 1.4, easing 2 % per tick no longer keeps up and the
+    # player stops circling: a property of the rule, not tested here.)
+    p = make(max_mana=0, move_speed=speed, **{"skill1.range": 6.0})
+    rates = []
+    for sign in (1.0, -1.0):
+        s = hr_solo(p, (0.0, -6.0), boss=(0.0, 0.0))
+        s = s.replace(orbit_sign=s.orbit_sign.at[0].set(sign))
+        _, hist = run(s, p, acts(ACTION_HEURISTIC, NOOP, NOOP), 150)
+        rel = np.array([h["state"].pos[0] - h["state"].pos[BOSS] for h in hist[99:]])
+        ang = np.unwrap(np.arctan2(rel[:, 1], rel[:, 0]))
+        rates.append((ang[-1] - ang[0]) / (len(ang) - 1) * 10.0)  # 10 decisions per second
+    np.testing.assert_allclose(np.abs(rates), speed, rtol=0.02)
+    assert rates[0] * rates[1] < 0  # the coin flip picks the direction

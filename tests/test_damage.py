@@ -186,6 +186,28 @@ def test_homing_heal_missile_reaches_its_ally():
     assert float(out.hp[BOSS]) == 1000.0
 
 
+
+@pytest.mark.parametrize("hit_count, expected", [(8, [90.0, 60.0, 100.0]), (3, [90.0, 60.0, 100.0]),
+                                                 (2, [90.0, 60.0, 85.0]), (1, [90.0, 30.0, 85.0])])
+def test_area_heal_heals_allies_in_its_circle_nearest_first_each_once(hit_count, expected):
+    # healing_circle: an area of radius 4 centred on its caster (area_offset 0) that touches allies
+    # only (the caster is one), int(0.3 x 100) = 30 HP each, capped at max HP 100, up to hit_count
+    # units nearest its centre first (GAME.md §5-6). The healer is 0 from the centre, ally 1 is
+    # 1.5 and ally 2 is 3.0; the boss's body reaches inside the circle but it is an enemy. At 5
+    # sub-steps per decision the area lingers 5 ticks over the three: each is healed once, also
+    # when hit_count (8) leaves room for more hits.
+    healer = {"skill1": "healing_circle", "skill1.hit_count": hit_count}
+    p = make(player_overrides=[healer, {}, {}], config=raidjax.EnvConfig.from_rules("clean"))
+    s = scenario(p, players=((0.0, -4.0), (1.5, -4.0), (-3.0, -4.0)), boss=(0.0, 0.0),
+                 hp=(60.0, 30.0, 85.0, None))
+    _, hist = run(s, p, CAST, 40)  # cast 1.5 s; cooldown 6 s from the firing: one cast only
+    hp = series(hist, lambda st: st.hp)
+    changed = np.nonzero(np.any(np.diff(hp, axis=0) != 0, axis=1))[0]
+    assert changed.tolist() == [14]  # fired in decision 15's last tick, lands in decision 16, once
+    np.testing.assert_allclose(hp[-1, :3], expected)
+    assert hp[-1, BOSS] == 1000.0
+
+
 # --- basic attack, regeneration --------------------------------------------------------------
 
 @pytest.mark.parametrize(

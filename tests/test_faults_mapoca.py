@@ -105,6 +105,32 @@ def test_flipped_bytes_orbax_reads_without_error_fail_the_pytree_digest(tmp_path
         capsys.readouterr().err)
 
 
+
+def test_rejected_checkpoints_are_set_aside_without_overwriting_one_another(tmp_path, capsys):
+    """Two groups of one run (Benchmark 1's ``checkpoints/mapoca/group<g>``) each reject their update
+    2, then one of them saves update 2 again and rejects it again: three folders set aside, none
+    overwritten (each holds the flipped file it was rejected with)."""
+    parent = tmp_path / "checkpoints" / "mapoca"
+    state, f0 = _two_checkpoints(parent / "group0")
+    _, f1 = _two_checkpoints(parent / "group1")
+    abstract = jax.eval_shape(lambda: state)
+
+    def reject(ckpt: Path, f: Path, at: int) -> bytes:
+        flip(f, at)  # a different place each time: each rejected copy differs from the others
+        broken = f.read_bytes()
+        _, _, meta = checkpoint.restore(ckpt, abstract, quarantine=True)
+        assert meta["update"] == 1 and not (ckpt / "2").exists()
+        return broken
+
+    rejected = [reject(parent / "group0", f0, 2000), reject(parent / "group1", f1, 2064)]
+    checkpoint.save(parent / "group0", {**state, "w": state["w"] * 2}, {"w": state["w"] * 2}, {}, {"update": 2})
+    rejected.append(reject(parent / "group0", largest_state_file(parent / "group0" / "2"), 2128))
+    capsys.readouterr()
+    aside = [parent / "group0_rejected" / "2", parent / "group1_rejected" / "2", parent / "group0_rejected" / "2.1"]
+    for folder, broken in zip(aside, rejected, strict=True):
+        assert any(g.read_bytes() == broken for g in folder.rglob("*") if g.is_file()), folder
+
+
 def cli(module, argv, capsys) -> tuple[int, str]:
     """Run ``module.cli(argv)`` in-process: ``(exit code, stderr)``."""
     with pytest.raises(SystemExit) as e:

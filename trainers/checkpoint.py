@@ -11,7 +11,9 @@ interrupted save never shows up as a checkpoint; the two digests catch what the 
 (bytes changed or lost on disk afterwards): the file list before orbax reads anything, the
 pytree digest after it did. A checkpoint that fails either check or does not load is named in a
 one-line warning and the next older one is tried; resuming trainers move the rejected ones aside
-to ``DIR/checkpoints_rejected/`` (nothing is deleted).
+to ``DIR/checkpoints_rejected/<update>`` (beside any other checkpoints folder ``X``, to
+``X_rejected/``; an update rejected again gets ``<update>.1``, ``.2``, ...: nothing is deleted or
+overwritten).
 Loading a trained policy is each algorithm's (``trainers.mapoca.load_policy``), on top of
 ``load_policy_weights``.
 """
@@ -20,7 +22,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import shutil
 import sys
 from pathlib import Path
 
@@ -123,7 +124,7 @@ def _candidates(path: str | Path) -> tuple[Path, list[int]]:
     path = Path(path)
     if not path.exists():
         raise CheckpointError(f"checkpoint path {path} does not exist")
-    if path.name.isdigit() and path.is_dir() and path.parent.name != "checkpoints_rejected":
+    if path.name.isdigit() and path.is_dir() and not path.parent.name.endswith("_rejected"):
         return path.parent, [int(path.name)]
     directory = path / "checkpoints" if (path / "checkpoints").is_dir() else path
     steps = sorted((int(p.name) for p in directory.iterdir() if p.is_dir() and p.name.isdigit()), reverse=True)
@@ -186,10 +187,25 @@ def _restore_one(directory: Path, step: int, **items):
     return out
 
 
+def _set_aside(directory: Path, step: int) -> Path:
+    """Move ``directory/<step>`` to ``<directory>_rejected/<step>`` (``<step>.1``, ``.2``, ... when
+    that name is taken: the same update rejected twice, or in another run's folder) and return
+    where it went. One folder per checkpoints folder, so the groups of a run that share a parent
+    (``checkpoints/mapoca/group0``, ``group1``) never take each other's names."""
+    home = directory.parent / f"{directory.name}_rejected"
+    home.mkdir(parents=True, exist_ok=True)
+    dest, n = home / str(step), 0
+    while dest.exists():
+        n += 1
+        dest = home / f"{step}.{n}"
+    (directory / str(step)).rename(dest)
+    return dest
+
+
 def _restore(path: str | Path, quarantine: bool = False, **items):
     """The newest checkpoint under ``path`` that loads and matches its digests, warning (one line
-    on stderr) about each newer one that does not; with ``quarantine`` those are moved to
-    ``<run>/checkpoints_rejected/``. Returns ``(orbax Composite result, step)``."""
+    on stderr) about each newer one that does not; with ``quarantine`` those are moved aside
+    (``_set_aside``). Returns ``(orbax Composite result, step)``."""
     directory, steps = _candidates(path)
     rejected = []
     for step in steps:
@@ -202,10 +218,7 @@ def _restore(path: str | Path, quarantine: bool = False, **items):
             continue
         if quarantine:
             for bad in rejected:
-                dest = directory.parent / "checkpoints_rejected" / str(bad)
-                dest.parent.mkdir(parents=True, exist_ok=True)
-                shutil.rmtree(dest, ignore_errors=True)
-                (directory / str(bad)).rename(dest)
+                dest = _set_aside(directory, bad)
                 print(f"warning: moved the unusable checkpoint {directory / str(bad)} to {dest}",
                       file=sys.stderr, flush=True)
         return out, step
@@ -219,7 +232,7 @@ def restore(path: str | Path, abstract_state, quarantine: bool = False) -> tuple
     Args:
         path: a run dir, its ``checkpoints`` dir, or one step dir (then no fallback).
         abstract_state: the state's structure, shapes and dtypes.
-        quarantine: move newer checkpoints that failed to ``<run>/checkpoints_rejected/`` (a
+        quarantine: move newer checkpoints that failed aside, to ``<run>/checkpoints_rejected/`` (a
             resuming trainer does, so its next saves do not collide with them).
 
     Returns:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -29,6 +30,36 @@ def test_resume_keeps_rows_up_to_the_checkpoint_and_drops_a_torn_line(tmp_path):
     assert [float(r["loss"]) for r in table] == [0.5, 1.0, 9.0] and "per_group" not in table[0]
     MetricsLog(tmp_path, tensorboard=False)  # a fresh run (no resume) starts both files empty
     assert (tmp_path / "metrics.jsonl").read_text() == "" and (tmp_path / "metrics.csv").read_text() == ""
+
+
+
+def test_a_resumed_run_hides_tensorboard_points_it_logs_again(tmp_path, monkeypatch):
+    """tensorboardX (an optional extra) stood in for by a writer that records how it was opened: a
+    resume from update 2 purges TensorBoard's points from the step after update 2's (env_steps
+    200), so the updates logged again after the checkpoint do not show twice."""
+    import sys
+    import types
+
+    opened, points = [], []
+
+    class Writer:
+        def __init__(self, logdir, purge_step=None):
+            Path(logdir).mkdir(parents=True, exist_ok=True)
+            opened.append(purge_step)
+
+        def add_scalar(self, tag, value, step):
+            points.append((tag, step))
+
+        def flush(self):
+            pass
+
+    monkeypatch.setitem(sys.modules, "tensorboardX", types.SimpleNamespace(SummaryWriter=Writer))
+    log = MetricsLog(tmp_path)
+    for u in (1, 2, 3):
+        log.write({"update": u, "env_steps": 100 * u, "loss": 0.5})
+    MetricsLog(tmp_path, resume_update=2)
+    MetricsLog(tmp_path, resume_update=0)  # no row kept: every earlier point is hidden
+    assert opened == [None, 201, 0] and ("loss", 300) in points
 
 
 def test_nan_is_written_as_json_null(tmp_path):

@@ -25,13 +25,20 @@ def _scalar(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
-def _tensorboard_writer(out: Path):
-    """A ``tensorboardX.SummaryWriter`` on ``DIR/tensorboard``, or ``None`` if it is not installed."""
+def _tensorboard_writer(out: Path, purge_step: int | None):
+    """A ``tensorboardX.SummaryWriter`` on ``DIR/tensorboard``, or ``None`` if it is not installed.
+    ``purge_step``: TensorBoard hides the earlier event files' points from this step on (the ones a
+    resumed run logs again)."""
     try:
         from tensorboardX import SummaryWriter
     except ImportError:
         return None
-    return SummaryWriter(str(out / "tensorboard"))
+    return SummaryWriter(str(out / "tensorboard"), purge_step=purge_step)
+
+
+def _tensorboard_step(row: dict) -> int:
+    """A row's step on TensorBoard's axis: its decisions so far, else its update."""
+    return int(row.get("env_steps", row["update"]))
 
 
 class MetricsLog:
@@ -65,7 +72,10 @@ class MetricsLog:
         self.fields = [k for k, v in rows[0].items() if _scalar(v) or v is None] if rows else None
         atomic_write(self.jsonl, "".join(json.dumps(r) + "\n" for r in rows))
         atomic_write(self.csv, self._csv_text(rows, header=bool(rows)))
-        self.tb = _tensorboard_writer(out) if tensorboard else None
+        purge = None  # a first start writes no purge; a resume hides what came after the kept rows
+        if (out / "tensorboard").exists():
+            purge = _tensorboard_step(rows[-1]) + 1 if rows else 0
+        self.tb = _tensorboard_writer(out, purge) if tensorboard else None
 
     def _csv_text(self, rows: list[dict], header: bool) -> str:
         buf = io.StringIO()
@@ -80,7 +90,7 @@ class MetricsLog:
         """Append one row (a dict with an ``update`` key) to both files, and to TensorBoard."""
         row = json.loads(finite_json(row))  # NaN as null, numpy scalars as numbers
         if self.tb is not None:
-            step = int(row.get("env_steps", row["update"]))
+            step = _tensorboard_step(row)
             for k, v in row.items():
                 if _scalar(v):
                     self.tb.add_scalar(k, v, step)

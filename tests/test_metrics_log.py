@@ -88,3 +88,22 @@ def test_plot_writes_its_figure_atomically(tmp_path, monkeypatch):
     monkeypatch.setattr(plot, "atomic_write", lambda path, data: written.append((str(path), data[:8])))
     plot.main([str(run), "--out", str(tmp_path / "curves.png")])
     assert written == [(str(tmp_path / "curves.png"), b"\x89PNG\r\n\x1a\n")]
+
+
+def test_plot_reads_a_live_run_a_torn_last_row_and_a_missing_value(tmp_path):
+    """``trainers.plot`` is for live and killed runs too: a last row without its line end is left out,
+    and a metric without a value (NaN, an empty csv cell) is NaN, not a refused table."""
+    from trainers import plot
+
+    run = tmp_path / "run"
+    log = MetricsLog(run, tensorboard=False)
+    for u, ev in ((1, float("nan")), (2, 0.5)):
+        log.write({"update": u, "env_steps": 100 * u, "win_rate": 0.1 * u, "return": float(u),
+                   "value_explained_variance": ev})
+    with (run / "metrics.csv").open("a") as f:
+        f.write("3,300,0.")  # the row of update 3, cut in the middle of a number
+    m = plot.read_metrics(run)
+    assert m["env_steps"] == [100.0, 200.0] and m["win_rate"] == [0.1, 0.2]
+    assert np.isnan(m["value_explained_variance"][0]) and m["value_explained_variance"][1] == 0.5
+    plot.main([str(run), "--out", str(tmp_path / "curves.png")])
+    assert (tmp_path / "curves.png").read_bytes()[:4] == b"\x89PNG"

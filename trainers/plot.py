@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import math
 from pathlib import Path
 
 from raidjax.io import HelpFormatter, atomic_write, check_output_file, run_cli
@@ -17,10 +18,12 @@ FORMATS = ("png", "pdf", "svg")  # of --out, by its suffix
 
 
 def read_metrics(run: str | Path) -> dict[str, list[float]]:
-    """Columns of ``run/metrics.csv`` as lists of floats (keyed by header)."""
-    with (Path(run) / "metrics.csv").open() as f:
-        rows = list(csv.DictReader(f))
-    return {k: [float(r[k]) for r in rows] for k in rows[0]}
+    """Columns of ``run/metrics.csv`` as lists of floats (keyed by header). An empty cell (a metric
+    without a value at that update, NaN in the log) is NaN; a last row without its line end (a run
+    killed or still writing it) is left out."""
+    text = (Path(run) / "metrics.csv").read_text()
+    rows = list(csv.DictReader(io.StringIO(text[:text.rfind("\n") + 1])))
+    return {k: [float(r[k]) if r[k] else math.nan for r in rows] for k in rows[0]}
 
 
 COLUMNS = ("env_steps", "win_rate", "return")  # of a MA-POCA run's metrics.csv (trainers.mapoca_cli)

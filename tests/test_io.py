@@ -59,3 +59,21 @@ def test_use_compilation_cache_sets_a_folder_only_where_none_is_set(monkeypatch,
     assert not (tmp_path / "ours" / "stale").exists()  # cut to max_bytes first
     monkeypatch.setenv("RAIDJAX_COMPILATION_CACHE", "0")
     assert io.use_compilation_cache(tmp_path / "ours") is None and len(set_to) == 1
+
+
+def test_atomic_write_replaces_whole_files_with_the_usual_mode_and_leaves_no_temporary(tmp_path, monkeypatch):
+    import os
+    import stat
+
+    target = tmp_path / "sub" / "result.json"
+    io.atomic_write(target, "old")
+    io.atomic_write(target, b"new")
+    assert target.read_bytes() == b"new" and os.listdir(target.parent) == ["result.json"]
+    umask = os.umask(0)  # reads the process's umask (and puts it back): mkstemp alone gives 0600
+    os.umask(umask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask
+    synced = []  # the folder is synced after the rename, so the new name is on disk too
+    real_fsync = os.fsync
+    monkeypatch.setattr(os, "fsync", lambda fd: (synced.append(stat.S_ISDIR(os.fstat(fd).st_mode)), real_fsync(fd)))
+    io.atomic_write(target, "newer")
+    assert synced == [False, True] and target.read_text() == "newer"

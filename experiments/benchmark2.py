@@ -324,8 +324,8 @@ def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "pap
             t, start = time.perf_counter(), utc_now()
             key = jax.random.fold_in(jax.random.key(seed + 1), i)
             gens = generate_episodes(key, generators, **kwargs)
+            run.record(part_record(i), start, time.perf_counter() - t)  # first: a saved part has its record
             save_generated(path, gens)
-            run.record(part_record(i), start, time.perf_counter() - t)
             done_here += 1
             eta = (time.perf_counter() - t0) / done_here * (scale.parts - i - 1)
             run.log(f"generate: part {i + 1}/{scale.parts} ({per_part} episodes per target and method, "

@@ -108,7 +108,8 @@ class RunFolder:
         resume: continue the run in ``out``. Without it an ``out`` holding a run is refused; with
             it an ``out`` holding none is refused, and so are other settings than the recorded ones.
         ignore: top-level settings a resumed run may change (e.g. the size of the final
-            evaluation); the recorded value is replaced by the new one.
+            evaluation); the recorded value is replaced by the new one, unless the run has
+            finished: its ``config.json`` keeps describing the results beside it (until ``redo``).
 
     Attributes:
         resumed: whether a run was found and is being continued.
@@ -142,11 +143,16 @@ class RunFolder:
                                      "rerun its own command with --resume, or choose a new --out")
         self.out.mkdir(parents=True, exist_ok=True)
         self.finished = self.resumed and any((self.out / n).exists() for n in ("summary.json", "result.json"))
-        if not self.resumed or any(config.get(k) != old.get(k) for k in ignore):
+        changed = [k for k in ignore if self.resumed and config.get(k) != old.get(k)]
+        if not self.resumed or (changed and not self.finished):
             atomic_write(cfg_path, json.dumps(config, indent=1))
         self.config = config
         if self.resumed:
             self.log(f"resuming the {'finished ' if self.finished else ''}run in {self.out}")
+            if changed and self.finished:
+                self.log("its results were made with " + "; ".join(
+                    f"{k} {json.dumps(old.get(k))} (asked now: {json.dumps(config.get(k))})" for k in changed)
+                    + ", kept as they are: choose a new --out to run with the new value")
             for tmp in sorted(self.out.rglob(".*.tmp")):  # atomic_write's, from a write that was killed
                 tmp.unlink()
                 self.log(f"removed an unfinished temporary file {tmp} (the file it was to replace is whole)")
@@ -180,6 +186,7 @@ class RunFolder:
         for p in (self.out / "summary.json", self.out / "stages" / f"{name}.json"):
             p.unlink(missing_ok=True)
         self.finished = False
+        atomic_write(self.out / "config.json", json.dumps(self.config, indent=1))  # what the redone stage uses
         self.log(f"stage {name}: to be done again ({why})")
 
     def stage(self, name: str, fn: Callable[[], Any]) -> Any:
@@ -193,8 +200,8 @@ class RunFolder:
         self.log(f"stage {name}: start")
         result = fn()
         seconds = time.perf_counter() - t
+        self.record(name, start, seconds)  # first: a stage counted as done always has its record
         atomic_write(self.path("stages", f"{name}.json"), finite_json(result, indent=1))
-        self.record(name, start, seconds)
         self.log(f"stage {name}: done in {fmt_seconds(seconds)}")
         return json.loads(finite_json(result))
 

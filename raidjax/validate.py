@@ -161,7 +161,8 @@ def check_fields(obj, bounds: dict[str, tuple]) -> None:
         ok = {"int": isinstance(v, int) and not isinstance(v, bool), "float": is_number(v),
               "bool": isinstance(v, bool)}.get(kind, True)
         if not ok:
-            raise fail(f.name, v, kind_word(kind))
+            finite = not isinstance(v, float) or math.isfinite(v)
+            raise fail(f.name, v, kind_word(kind), None if finite else "not finite")
         if f.name in bounds:
             low, high, *wording = bounds[f.name]
             exclusive = bool(wording) and wording[0].startswith(">")

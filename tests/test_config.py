@@ -88,6 +88,27 @@ def test_every_mapoca_field_added_since_says_what_older_runs_played_with():
     assert all(getattr(Config(), k) == v != ADDED_SETTINGS[k] for k, v in changed.items())
 
 
+
+@pytest.mark.parametrize("learner, fields, message", [
+    ("mapoca", {"players": ["mage"] * 9}, "players: value ['mage', 'mage', "),
+    ("ppo_pcgrl", {"players": ["wizard", "mage", "mage"], "parameters": ["mage.skill1.range"]},
+     "players: value ['wizard', 'mage', 'mage']; allowed: 1-8 names of ["),
+    ("mapoca", {"n_minibatches": 7}, "n_minibatches: value 7; allowed: a divisor of the "),
+    ("ppo_pcgrl", {"target": [-5, 7]}, "target: value (-5, 7); allowed: (low, high) win rates with 0 <= low"),
+    ("mapoca", {"total_steps": 2**31}, "total_steps: value 2147483648; allowed: a whole number in [1, 2147483647]"),
+    ("ppo_pcgrl", {"total_steps": 10**20}, "total_steps: value 100000000000000000000; allowed: a whole number in"),
+    ("ppo_pcgrl", {"lr": float("nan")}, "lr: value nan is not finite; allowed: a number"),
+])
+def test_what_a_trainer_would_refuse_later_the_config_refuses(tmp_path, learner, fields, message):
+    """Refused by the config (``load_config``), so before a run folder records it: the corrected
+    command then starts afresh instead of meeting 'already holds a run'."""
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(fields))
+    with pytest.raises(ValueError) as e:
+        load_config("cpu", path, learner=learner)
+    assert str(e.value).startswith(message) and "\n" not in str(e.value), str(e.value)
+
+
 def test_replace_and_run_settings_refuse_unknown_names_in_one_line(tmp_path):
     from trainers.runs import run_ppo_pcgrl
 

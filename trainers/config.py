@@ -21,6 +21,8 @@ from raidjax.validate import check_fields, is_number
 from trainers.returns import EPISODE_ENDS
 
 NETWORKS = ("raidjax", "reference")  # Config.network
+# The largest total_steps: counters of decisions (and the PPO's edits) are int32 inside the programs.
+MAX_STEPS = 2**31 - 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -163,7 +165,8 @@ class Config:
     def __post_init__(self):
         check_fields(self, {
             **dict.fromkeys(("n_arenas", "n_steps", "n_minibatches", "update_epochs", "hidden", "layers", "heads",
-                             "redraw_every", "total_steps", "updates_per_chunk", "checkpoint_every"), (1, None)),
+                             "redraw_every", "updates_per_chunk", "checkpoint_every"), (1, None)),
+            "total_steps": (1, MAX_STEPS),
             "eval_games": (0, None), "lr": (0, None, "> 0"), "adam_eps": (0, None, "> 0"),
             "max_grad_norm": (0, None), "gamma": (0, 1), "lam": (0, 1), "clip_eps": (0, None, "> 0"),
             "ent_coef": (0, None), "fresh_starts": (0, 1)})
@@ -178,14 +181,19 @@ class Config:
                     isinstance(v, str) for v in value):
                 raise ValueError(f"{name}: value {value!r}; allowed: a list of names")
             object.__setattr__(self, name, tuple(value))
-        if not self.players or not all(c in catalogue.CLASSES for c in self.players):
-            raise ValueError(f"players: value {list(self.players)}; allowed: 1-8 names of {sorted(catalogue.CLASSES)}")
+        check_players(self.players)
         if self.content_box:
             pcg.make_space(self.parameters, self.players)  # ValueError naming a bad parameter
         validate.name("senses", self.senses, SENSES, "observation and action space")
         validate.name("episode_ends", self.episode_ends, EPISODE_ENDS, "way a game's end reaches the returns")
         validate.name("network", self.network, NETWORKS, "network layout")
         validate.name("minibatch_rows", self.minibatch_rows, ("decisions", "agents"), "kind of sample")
+        agents = self.minibatch_rows == "agents"
+        rows = self.n_arenas * self.n_steps * (len(self.players) if agents else 1)
+        if rows % self.n_minibatches:
+            what = "agent experiences per update (n_arenas * n_steps * players)" if agents else \
+                "decisions per update (n_arenas * n_steps)"
+            raise ValueError(f"n_minibatches: value {self.n_minibatches}; allowed: a divisor of the {rows} {what}")
         if self.hidden % self.heads:
             raise ValueError(f"heads: value {self.heads} must divide hidden = {self.hidden}")
         if self.network == "reference" and self.heads != 4:
@@ -206,6 +214,12 @@ class Config:
     def from_dict(cls, d: dict) -> Config:
         """Inverse of ``to_dict``; raises ``ValueError`` naming unknown keys."""
         return cls().replace(**known_fields(cls, d))
+
+
+def check_players(players: tuple[str, ...]) -> None:
+    """A team of 1 to 8 class presets (``raidjax.catalogue.CLASSES``), else one ``ValueError`` line."""
+    if not 1 <= len(players) <= 8 or not all(c in catalogue.CLASSES for c in players):
+        raise ValueError(f"players: value {list(players)}; allowed: 1-8 names of {sorted(catalogue.CLASSES)}")
 
 
 def known_fields(cls, d: dict) -> dict:
@@ -318,8 +332,9 @@ class PPOConfig:
 
     def __post_init__(self):
         check_fields(self, {
-            **dict.fromkeys(("n_arenas", "n_steps", "total_steps", "update_epochs", "n_minibatches", "n_games",
+            **dict.fromkeys(("n_arenas", "n_steps", "update_epochs", "n_minibatches", "n_games",
                              "max_edits", "hidden", "layers"), (1, None)),
+            "total_steps": (1, MAX_STEPS),
             **dict.fromkeys(("lr", "clip_eps", "reward_scale"), (0, None, "> 0")),
             "gamma": (0, 1), "lam": (0, 1),
             **dict.fromkeys(("ent_coef", "vf_coef", "max_grad_norm", "edit_cost", "goal_cost"), (0, None))})
@@ -328,6 +343,12 @@ class PPOConfig:
             if not isinstance(value, tuple | list) or not all(isinstance(v, str) for v in value):
                 raise ValueError(f"{name}: value {value!r}; allowed: a list of names")
             object.__setattr__(self, name, tuple(value))
+        check_players(self.players)
+        target = self.target
+        if (not isinstance(target, tuple | list) or len(target) != 2 or not all(is_number(x) for x in target)
+                or not 0 <= target[0] <= target[1] <= 1):
+            raise ValueError(f"target: value {target!r}; allowed: (low, high) win rates with 0 <= low <= high <= 1")
+        object.__setattr__(self, "target", tuple(float(x) for x in target))  # JSON gives a list
         space = self.space  # checks the names against the team (ValueError naming the parameter)
         if self.goal_axis is not None:  # JSON gives a list; the env needs a hashable static field
             object.__setattr__(self, "goal_axis", pcg.goals.check_axis(self.goal_axis, space.size))

@@ -220,10 +220,6 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     multi_range = (multi_range or cfg.content_box) and not fixed_content
     actor, critic = make_networks(cfg)
     n, t_len = cfg.n_arenas, cfg.n_steps
-    if cfg.redraw_every < 1:
-        raise ValueError(f"redraw_every: value {cfg.redraw_every} must be >= 1 (episodes per range draw)")
-    if cfg.minibatch_rows == "decisions" and (n * t_len) % cfg.n_minibatches:
-        raise ValueError(f"n_minibatches: {cfg.n_minibatches} does not divide {n * t_len} decisions per update")
     grad_steps = cfg.num_updates * cfg.update_epochs * cfg.n_minibatches
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
     clip = [clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
@@ -234,9 +230,6 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     value_rows = "agents" if cfg.episode_ends == "reference" else "decisions"
     by_rows = cfg.minibatch_rows == "agents"
     n_players = len(cfg.players)
-    if by_rows and (n * t_len * n_players) % cfg.n_minibatches:
-        raise ValueError(f"n_minibatches: {cfg.n_minibatches} does not divide {n * t_len * n_players} agent "
-                         "experiences per update (minibatch_rows 'agents')")
 
     def init(key: jax.Array, content: Params | None = None, range_set: jax.Array | None = None) -> Runner:
         """A fresh runner; ``content`` (unbatched Params) and ``range_set`` (``float32[RANGE_TABLE]``,

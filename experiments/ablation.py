@@ -35,7 +35,7 @@ from trainers import checkpoint, loop
 from trainers.config import PRESETS, Config
 from trainers.curriculum import RANGE_TABLE, range_table
 from trainers.mapoca import make_trainer
-from trainers.runfolder import RunFolder, markdown_table
+from trainers.runfolder import SEED_MAX, RunFolder, check_out, markdown_table
 from trainers.runs import mapoca_learner, per_run_columns
 
 _REFERENCE_ENDS = {"episode_ends": "reference"}
@@ -191,7 +191,8 @@ def main(argv=None) -> str:
                     help="variants to train and play, in this order")
     ap.add_argument("--ranges", nargs="+", type=float, default=[9.0, 13.0], help="skill ranges (reference content)")
     ap.add_argument("--seeds", type=whole_number_arg(1), default=3, help="training seeds per range")
-    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed of the runs (the same in every variant)")
+    ap.add_argument("--seed", type=whole_number_arg(0, SEED_MAX), default=0,
+                    help="base PRNG seed of the runs (the same in every variant)")
     ap.add_argument("--only-seeds", nargs="+", type=int, metavar="S",
                     help="train and play only these of the --seeds seed indices (0-based), as they are in the "
                          "whole layout: one paper-budget seed at a time")
@@ -203,6 +204,7 @@ def main(argv=None) -> str:
                     help="train nothing: write OUT/ablation.md from the play rows of these --out folders "
                          "(seeds trained alone with --only-seeds), as one table")
     args = ap.parse_args(argv)
+    check_out(args.out)
     if args.tables_of:
         for d in args.tables_of:
             if not any((d / n / "play.jsonl").exists() for n in VARIANTS):
@@ -219,6 +221,9 @@ def main(argv=None) -> str:
         if not 0 <= s < args.seeds:
             raise ValueError(f"--only-seeds: value {s}; allowed: seed indices 0..{args.seeds - 1} "
                              f"(--seeds {args.seeds})")
+    if args.resume and not any((args.out / n / "config.json").exists() for n in args.variants):
+        raise ValueError(f"--resume: {args.out} holds no started variant to resume (no <variant>/config.json for "
+                         f"{', '.join(args.variants)}); drop --resume to start them")
     teams, inputs = run_inputs(args.ranges, args.seeds, args.seed, args.only_seeds)
     for name in args.variants:
         cfg = variant_config(name, args.total_steps)

@@ -17,6 +17,7 @@ import re
 from pathlib import Path
 
 from experiments.figures import save_png
+from raidjax.io import check_output_file
 
 RANGES = (5.0, 9.0, 13.0, 17.0)
 
@@ -82,6 +83,10 @@ def main(argv=None) -> None:
     ap.add_argument("--labels", nargs="+", required=True, help="one label per folder")
     ap.add_argument("--out", required=True, help="the PNG of the learning curves")
     args = ap.parse_args(argv)
+    try:
+        check_output_file("--out", args.out, (".png",))
+    except ValueError as e:
+        ap.error(str(e))
     if len(args.labels) != len(args.folders):
         ap.error(f"--labels: {len(args.labels)} labels for {len(args.folders)} folders; allowed: one per folder")
     folders = [Path(f) for f in args.folders]

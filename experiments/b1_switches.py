@@ -26,7 +26,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
-from raidjax.io import HelpFormatter, atomic_write, machine, run_cli, whole_number_arg
+from raidjax.io import HelpFormatter, atomic_write, check_output_file, machine, run_cli, whole_number_arg
 
 SWITCHES = ("reference", "carry_cooldowns=False", "clean")
 
@@ -121,6 +121,7 @@ def main(argv=None) -> None:
     ap.add_argument("--games", type=whole_number_arg(1), default=1000, help="games per team and switch")
     ap.add_argument("--out", type=Path, required=True, help="JSON lines file to write")
     args = ap.parse_args(argv)
+    check_output_file("--out", args.out, (".jsonl",))  # before the games, not at their last write
     if not (args.run / "config.json").exists():
         raise ValueError(f"run: {str(args.run)!r} is not a run folder (no config.json)")
     rows = evaluate(args.run, args.games)

@@ -47,10 +47,21 @@ def figure(tables: list[dict]):
     return fig
 
 
+def read_tables(paths: list[str]) -> list[dict]:
+    """The ``raidjax.calibrate --json`` objects in ``paths``; ``ValueError`` naming a file that is JSON
+    but not one of them."""
+    tables = [json.loads(Path(p).read_text()) for p in paths]
+    for p, t in zip(paths, tables, strict=True):
+        if not isinstance(t, dict) or not {"table", "seed", "games_per_cell"} <= set(t) or not all(
+                name in t["table"] for name in LABEL):
+            raise ValueError(f"{p} is not a raidjax.calibrate --json file (no 'table' of {', '.join(LABEL)}, "
+                             "'seed' and 'games_per_cell')")
+    return tables
+
+
 def main(argv=None) -> None:
     figure_command(argv, prog="python -m experiments.calibration_figure", doc=__doc__,
-                   inputs="raidjax.calibrate --json files, one per seed",
-                   read=lambda paths: [json.loads(Path(p).read_text()) for p in paths], draw=figure)
+                   inputs="raidjax.calibrate --json files, one per seed", read=read_tables, draw=figure)
 
 
 if __name__ == "__main__":

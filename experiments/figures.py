@@ -10,7 +10,7 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
-from raidjax.io import atomic_write
+from raidjax.io import atomic_write, check_output_file
 
 
 def save_png(fig, path: str | Path, dpi: int = 100) -> Path:
@@ -29,6 +29,10 @@ def figure_command(argv: list[str] | None, *, prog: str, doc: str, inputs: str, 
     ap.add_argument("inputs", nargs="+", help=inputs)
     ap.add_argument("--out", required=True, help="the PNG to write")
     args = ap.parse_args(argv)
+    try:
+        check_output_file("--out", args.out, (".png",))
+    except ValueError as e:
+        ap.error(str(e))
     try:
         data = read(args.inputs)
     except (OSError, json.JSONDecodeError) as e:

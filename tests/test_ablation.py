@@ -69,6 +69,21 @@ def test_only_seeds_outside_the_layout_is_refused(tmp_path):
         main(["--out", str(tmp_path), "--seeds", "3", "--only-seeds", "3"])
 
 
+
+def test_bad_out_resume_and_seed_are_refused_before_anything_trains(tmp_path, capsys):
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    with pytest.raises(ValueError, match=rf"^--out: {afile} is a file; allowed: a folder"):
+        main(["--out", str(afile)])
+    with pytest.raises(ValueError, match=r"^--resume: .* holds no started variant to resume .*drop --resume"):
+        main(["--out", str(tmp_path / "none"), "--resume"])
+    assert not (tmp_path / "none").exists()
+    for seed in ("-1", "2147483648"):
+        with pytest.raises(SystemExit):
+            main(["--out", str(tmp_path / "s"), "--seed", seed])
+        assert "allowed: a whole number in [0, 2147483647]" in capsys.readouterr().err
+
+
 def test_tables_of_seeds_trained_alone_join_into_one_table(tmp_path):
     def folder(seed, team):
         rows = []

@@ -59,3 +59,27 @@ def test_speed_figure_reads_the_stored_vs_smax_runs_and_skips_other_lines(tmp_pa
     assert out.read_bytes() == before
     with pytest.raises(SystemExit):  # an unreadable file
         speed_figure.main([str(tmp_path / "missing.json"), "--out", str(out)])
+
+
+@pytest.mark.parametrize("module", ["calibration_figure", "b1_compare"])
+def test_a_bad_out_is_refused_before_reading_or_drawing(module, tmp_path, capsys):
+    inputs = {"calibration_figure": [str(tmp_path / "missing.json")],
+              "b1_compare": [str(tmp_path / "missing"), "--labels", "x"]}[module]
+    main = {"calibration_figure": calibration_figure.main, "b1_compare": b1_compare.main}[module]
+    for out, why in ((tmp_path, "is a folder"), (tmp_path / "nowhere" / "f.png", "is in a folder that does not exist"),
+                     (tmp_path / "f.pdf", "does not end in .png")):
+        with pytest.raises(SystemExit) as e:
+            main([*inputs, "--out", str(out)])
+        err = capsys.readouterr().err.strip().splitlines()[-1]
+        assert e.value.code == 2 and f"--out: value '{out}' {why}" in err, err
+
+
+def test_calibration_figure_names_a_json_file_that_is_not_a_calibration_table(tmp_path, capsys):
+    for i, text in enumerate(('[1, 2]', '{"foo": 1}', '{"table": {"heuristic": {}}, "seed": 0, "games_per_cell": 1}')):
+        bad = tmp_path / f"bad{i}.json"
+        bad.write_text(text)
+        with pytest.raises(SystemExit):
+            calibration_figure.main([str(bad), "--out", str(tmp_path / "c.png")])
+        err = capsys.readouterr().err
+        assert f"inputs: {bad} is not a raidjax.calibrate --json file" in err and "Traceback" not in err
+    assert not (tmp_path / "c.png").exists()

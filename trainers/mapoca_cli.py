@@ -64,6 +64,12 @@ def main(argv=None) -> dict:
                       total_steps=args.total_steps,
                       checkpoint_every=args.checkpoint_every, updates_per_chunk=args.updates_per_chunk,
                       eval_games=args.eval_games)
+    if args.skill_range and cfg.content_box:
+        raise ValueError(f"--skill-range: value {' '.join(f'{r:g}' for r in args.skill_range)}; allowed: none with "
+                         "--content-box (the box draws every arena's skill)")
+    if args.parameters and not cfg.content_box:
+        raise ValueError(f"--parameters: value {' '.join(args.parameters)}; allowed: with --content-box (or "
+                         "content_box in --config) only: they name the box it draws from")
     return run_mapoca(cfg, args.out, preset=args.preset, seeds=args.seeds, seed=args.seed, resume=args.resume,
                       max_chunks=args.max_chunks)
 

@@ -14,6 +14,7 @@ intact checkpoint with the same settings; anything else on an existing run is re
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from raidjax import pcg
 from raidjax.io import HelpFormatter, run_cli, whole_number_arg
@@ -72,6 +73,10 @@ def main(argv=None) -> dict | None:
     """Train, checkpoint, evaluate (``trainers.runs.run_ppo_pcgrl``); the last stdout line is one
     JSON object (also returned)."""
     args = _args(argv)
+    if args.tester is not None and not Path(args.tester).is_dir():
+        wrong = "is a file" if Path(args.tester).exists() else "does not exist"
+        raise ValueError(f"--tester: value {args.tester!r} {wrong}; allowed: a trained MA-POCA run folder "
+                         "(trainers.mapoca_cli --out)")
     flags = dict(total_steps=args.total_steps, n_games=args.n_games, n_arenas=args.n_arenas, lr=args.lr,
                  edit_cost=args.edit_cost, pool_repeats=args.pool_repeats, ent_coef=args.ent_coef,
                  goal_cost=args.goal_cost, goal_axis=args.goal_axis,

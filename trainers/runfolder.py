@@ -38,7 +38,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from raidjax.io import atomic_write, finite_json, fmt_seconds, machine, utc_now
+from raidjax.io import atomic_write, finite_json, fmt_seconds, machine, utc_now, whole_number_arg
 from trainers.config import upgrade_settings
 
 
@@ -77,6 +77,9 @@ def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:
     return out
 
 
+SEED_MAX = 2**31 - 1  # a --seed's largest value, as raidjax.calibrate's and render's (offsets stay well in range)
+
+
 def add_run_arguments(ap, scales=None, scale_help: str = "budgets", out_default: str | None = None) -> None:
     """The flags every long job shares: ``--scale`` (when ``scales`` is given; default ``smoke``),
     ``--out`` (required unless ``out_default``), ``--resume`` and ``--seed``, to an
@@ -88,7 +91,7 @@ def add_run_arguments(ap, scales=None, scale_help: str = "budgets", out_default:
                     + (" (required)" if out_default is None else ""))
     ap.add_argument("--resume", action="store_true", help="continue the run in --out from its newest intact "
                     "checkpoint (same settings; a finished run is left as it is)")
-    ap.add_argument("--seed", type=int, default=0, help="base PRNG seed")
+    ap.add_argument("--seed", type=whole_number_arg(0, SEED_MAX), default=0, help="base PRNG seed")
 
 
 def check_out(out: str | Path, flag: str = "--out") -> Path:

@@ -220,8 +220,11 @@ def test_generator_cli_refuses_a_bad_config_file_and_a_missing_tester(tmp_path):
     bad.write_text(json.dumps({"parameters": ["boss.armour"]}))
     with pytest.raises(ValueError, match="'boss.armour' is not a parameter"):
         ppo_pcgrl_cli.main(["--config", str(bad), "--out", str(tmp_path / "a")])
-    with pytest.raises(checkpoint.CheckpointError, match="does not exist"):
+    with pytest.raises(ValueError, match=r"^--tester: value '.*none' does not exist; allowed: a trained MA-POCA"):
         ppo_pcgrl_cli.main(["--tester", str(tmp_path / "none"), "--out", str(tmp_path / "b")])
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(checkpoint.CheckpointError, match="no finished checkpoint"):
+        ppo_pcgrl_cli.main(["--tester", str(tmp_path / "empty"), "--out", str(tmp_path / "b")])
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 

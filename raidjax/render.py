@@ -117,8 +117,9 @@ def _parser(prog: str, trained: bool) -> argparse.ArgumentParser:
                     + (" | a trained MA-POCA run folder (trainers.mapoca_cli --out)" if trained else ""))
     ap.add_argument("--skill-range", type=number_arg(low, high), default=9.0, metavar="RANGE",
                     help="range of every player's skill slot 1")
-    ap.add_argument("--players", nargs="+", default=["mage"] * 3,
-                    help=f"1 to 8 class presets, e.g. warrior mage priest, from {', '.join(sorted(CLASSES))}")
+    ap.add_argument("--players", nargs="+",
+                    help=f"1 to 8 class presets, e.g. warrior mage priest, from {', '.join(sorted(CLASSES))} "
+                    "(default: " + ("a trained run's own team, else " if trained else "") + "three mages)")
     ap.add_argument("--seed", type=whole_number_arg(0, 2**31 - 1), default=0, help="PRNG seed of the episode")
     ap.add_argument("--decisions", type=whole_number_arg(1, limit), default=600,
                     help=f"decisions recorded (0.1 s each; the episode limit is {limit})")
@@ -162,18 +163,26 @@ def _check_policy(name: str, load_policy: Callable | None, find_run: Callable[[s
 
 
 def main(argv=None, load_policy: Callable | None = None, find_run: Callable[[str], str | None] | None = None,
-         prog: str = "python -m raidjax.render") -> None:
+         prog: str = "python -m raidjax.render", players_of: Callable[[str], list[str]] | None = None) -> None:
     """The replay command. ``load_policy(path) -> (policy, weights)`` turns a ``--policy`` that is not a
     built-in name into a policy (``trainers.render_cli`` passes the MA-POCA loader) once
-    ``find_run(path)`` accepted it (``None``; otherwise it returns why not); without them only the
-    built-in policies are accepted. Every flag is checked before anything compiles (``ValueError``,
-    one line naming the flag, the value and what is allowed)."""
+    ``find_run(path)`` accepted it (``None``; otherwise it returns why not), and ``players_of(path)``
+    says the team it was trained for (the default ``--players``; another team is refused); without
+    them only the built-in policies are accepted. Every flag is checked before anything compiles
+    (``ValueError``, one line naming the flag, the value and what is allowed)."""
     import raidjax
 
     args = _parser(prog, load_policy is not None).parse_args(argv)
-    players = _players(args.players)
+    players = _players(args.players) if args.players else None
     check_output_file("--out", args.out, (".gif",))
     _check_policy(args.policy, load_policy, find_run)
+    if args.policy not in BY_NAME and players_of is not None:
+        trained = list(players_of(args.policy))
+        if players is not None and players != trained:
+            raise ValueError(f"--players: value {' '.join(args.players)!r}; allowed: the team {args.policy} was "
+                             f"trained for, {' '.join(trained)} (leave --players out to use it)")
+        players = trained
+    players = players or ["mage"] * 3
     params = raidjax.make_params(players=players, skill_range=args.skill_range)
     if args.policy in raidjax.policies.BY_NAME:
         policy, weights = raidjax.policies.BY_NAME[args.policy], None

@@ -325,6 +325,9 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
     gif = tmp_path / "team.gif"
     render.main(["--policy", str(tmp_path), "--skill-range", "9", "--decisions", "3", "--out", str(gif)])
     assert gif.read_bytes()[:6] == b"GIF89a" and "frames" in capsys.readouterr().out
+    with pytest.raises(ValueError, match=r"^--players: value 'warrior mage priest'; allowed: the team .* was trained "
+                                         r"for, mage mage mage \(leave --players out to use it\)$"):
+        render.main(["--policy", str(tmp_path), "--players", "warrior", "mage", "priest", "--out", str(gif)])
 
     with pytest.raises(checkpoint.CheckpointError, match="does not exist"):
         load_policy(tmp_path / "nope")

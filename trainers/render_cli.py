@@ -10,6 +10,7 @@ from pathlib import Path
 from raidjax import render
 from raidjax.io import run_cli
 from trainers import checkpoint
+from trainers.config import Config
 from trainers.mapoca import load_policy
 
 
@@ -26,9 +27,16 @@ def find_run(path: str) -> str | None:
     return None
 
 
+def players_of(path: str) -> list[str]:
+    """The team the MA-POCA run at ``path`` was trained for (its newest checkpoint's config)."""
+    return list(Config.from_dict(checkpoint.load_config(path)).players)
+
+
 def main(argv=None) -> None:
-    """``python -m raidjax.render``'s flags; ``--policy`` may also name a MA-POCA run folder."""
-    render.main(argv, load_policy=load_policy, find_run=find_run, prog="python -m trainers.render_cli")
+    """``python -m raidjax.render``'s flags; ``--policy`` may also name a MA-POCA run folder, played
+    by the team it was trained for."""
+    render.main(argv, load_policy=load_policy, find_run=find_run, prog="python -m trainers.render_cli",
+                players_of=players_of)
 
 
 def cli(argv=None) -> None:

@@ -2,8 +2,8 @@
 (docs/results/ablation.md; PROTOCOLS.md §12, "The reference trainer, row by row").
 
     python -m experiments.ablation --out runs/ablation [--variants today reference_ends ...] [--resume]
-    python -m experiments.ablation --out runs/paper_budget --variants paper --resume   # the paper preset
-    python -m experiments.ablation --out runs/paper_r13_s0 --variants paper --ranges 13 --only-seeds 0 --resume
+    python -m experiments.ablation --out runs/paper_budget --variants paper   # the paper preset
+    python -m experiments.ablation --out runs/paper_r13_s0 --variants paper --ranges 13 --only-seeds 0
     python -m experiments.ablation --out runs/paper_r13 --tables-of runs/paper_r13_s0 runs/paper_r13_s1 ...
 
 Every variant is the `cpu` preset on the reference senses with ``VARIANTS``' overrides, but ``paper``,
@@ -253,5 +253,6 @@ def main(argv=None) -> str:
 
 if __name__ == "__main__":
     run_cli(main, (ValueError, checkpoint.CheckpointError),
-            "finished stages and the newest checkpoint are kept: rerun the same command with --resume")
+            "finished stages and the newest checkpoint are kept: rerun the same command with --resume "
+            "(without it if no variant had started)")
 

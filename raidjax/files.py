@@ -5,6 +5,7 @@ command line, can both use it without importing each other. ``raidjax.io`` re-ex
 
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 from pathlib import Path
@@ -36,6 +37,9 @@ def atomic_write(path: str | Path, data: str | bytes) -> Path:
         folder = os.open(path.parent, os.O_RDONLY | os.O_DIRECTORY)
         try:
             os.fsync(folder)
+        except OSError as e:  # some network and virtual file systems cannot sync a folder; the file is whole
+            if e.errno not in (errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP):
+                raise
         finally:
             os.close(folder)
     return path

@@ -66,3 +66,26 @@ def test_replay_gif_decodes_with_every_frame_and_moving_units(recorded, tmp_path
     assert np.abs(frames[0] - frames[1]).sum() > 0  # units moved between the first and middle frame
     assert np.abs(frames[1] - frames[2]).sum() > 0
     assert not list(tmp_path.glob(".tmp-*"))  # atomic write leaves no temp file
+
+
+def test_a_trained_run_is_rendered_with_the_team_it_was_trained_for(tmp_path, monkeypatch):
+    """``--policy RUN`` without ``--players`` plays the run's own team (``players_of``; here a stand-in
+    for a run trained as warrior, mage, priest), not the three mages of a scripted replay."""
+    from raidjax import render
+
+    class Built(Exception):
+        pass
+
+    made = []
+
+    def make_params(**kw):
+        made.append(kw["players"])
+        raise Built  # what the replay would play is known: stop before anything compiles
+
+    monkeypatch.setattr(raidjax, "make_params", make_params)
+    hooks = dict(load_policy=lambda path: None, find_run=lambda path: None,
+                 players_of=lambda path: ["warrior", "mage", "priest"])
+    for argv in (["--policy", str(tmp_path)], ["--policy", "heuristic"]):
+        with pytest.raises(Built):
+            render.main([*argv, "--out", str(tmp_path / "r.gif")], **hooks)
+    assert made == [["warrior", "mage", "priest"], ["mage", "mage", "mage"]]

@@ -36,7 +36,9 @@ def test_resume_keeps_rows_up_to_the_checkpoint_and_drops_a_torn_line(tmp_path):
 def test_a_resumed_run_hides_tensorboard_points_it_logs_again(tmp_path, monkeypatch):
     """tensorboardX (an optional extra) stood in for by a writer that records how it was opened: a
     resume from update 2 purges TensorBoard's points from the step after update 2's (env_steps
-    200), so the updates logged again after the checkpoint do not show twice."""
+    200), so the updates logged again after the checkpoint do not show twice; a first start marks
+    step 0 (TensorBoard ignores a folder's first marker). Logs of other names (Benchmark 1's groups)
+    have folders of their own, so one's purge never hides another's curves."""
     import sys
     import types
 
@@ -44,8 +46,7 @@ def test_a_resumed_run_hides_tensorboard_points_it_logs_again(tmp_path, monkeypa
 
     class Writer:
         def __init__(self, logdir, purge_step=None):
-            Path(logdir).mkdir(parents=True, exist_ok=True)
-            opened.append(purge_step)
+            opened.append((Path(logdir).name, purge_step))
 
         def add_scalar(self, tag, value, step):
             points.append((tag, step))
@@ -59,8 +60,9 @@ def test_a_resumed_run_hides_tensorboard_points_it_logs_again(tmp_path, monkeypa
         log.write({"update": u, "env_steps": 100 * u, "loss": 0.5})
     MetricsLog(tmp_path, resume_update=2)
     MetricsLog(tmp_path, resume_update=0)  # no row kept: every earlier point is hidden
-    assert opened == [None, 201, 0] and ("loss", 300) in points
-
+    MetricsLog(tmp_path, name="metrics_group1")
+    assert opened == [("tensorboard", 0), ("tensorboard", 201), ("tensorboard", 0),
+                      ("tensorboard_metrics_group1", 0)] and ("loss", 300) in points
 
 def test_nan_is_written_as_json_null(tmp_path):
     log = MetricsLog(tmp_path, tensorboard=False)

@@ -28,7 +28,9 @@ def test_a_finished_run_keeps_the_settings_its_results_were_made_with_until_a_st
     (out / "result.json").write_text("{}")
     rf = RunFolder(out, {"steps": 8, "eval_games": 5}, resume=True, ignore=("eval_games",))
     assert rf.finished and saved(out)["eval_games"] == 100  # config.json still describes result.json
-    assert "eval_games 100 (asked now: 5), kept as they are: choose a new --out" in capsys.readouterr().out
+    rf.already_finished()
+    assert "it finished with eval_games 100; the value given now (5) applies to a new run only" in (
+        capsys.readouterr().out)
     rf.redo("report", "eval_games changed")  # a stage done again is done with the new value
     assert not rf.finished and saved(out)["eval_games"] == 5
 

@@ -25,15 +25,16 @@ def _scalar(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
-def _tensorboard_writer(out: Path, purge_step: int | None):
-    """A ``tensorboardX.SummaryWriter`` on ``DIR/tensorboard``, or ``None`` if it is not installed.
+def _tensorboard_writer(folder: Path, purge_step: int):
+    """A ``tensorboardX.SummaryWriter`` on ``folder``, or ``None`` if it is not installed.
     ``purge_step``: TensorBoard hides the earlier event files' points from this step on (the ones a
-    resumed run logs again)."""
+    resumed run logs again); a first start gives 0, so that a resume's is not the folder's first
+    (TensorBoard ignores a folder's first start marker)."""
     try:
         from tensorboardX import SummaryWriter
     except ImportError:
         return None
-    return SummaryWriter(str(out / "tensorboard"), purge_step=purge_step)
+    return SummaryWriter(str(folder), purge_step=purge_step)
 
 
 def _tensorboard_step(row: dict) -> int:
@@ -48,7 +49,8 @@ class MetricsLog:
         out: the run folder.
         resume_update: keep the rows with ``update <= resume_update`` from an earlier run (the
             update of the checkpoint resumed from); ``None`` starts both files empty.
-        tensorboard: also write the scalar fields to ``DIR/tensorboard`` when ``tensorboardX`` is
+        tensorboard: also write the scalar fields to ``DIR/tensorboard`` (``DIR/tensorboard_<name>``
+            for another ``name``: a purge on resume hides every curve of its folder) when ``tensorboardX`` is
             installed.
         name: the files' name, ``DIR/<name>.jsonl`` and ``DIR/<name>.csv``.
     """
@@ -72,10 +74,9 @@ class MetricsLog:
         self.fields = [k for k, v in rows[0].items() if _scalar(v) or v is None] if rows else None
         atomic_write(self.jsonl, "".join(json.dumps(r) + "\n" for r in rows))
         atomic_write(self.csv, self._csv_text(rows, header=bool(rows)))
-        purge = None  # a first start writes no purge; a resume hides what came after the kept rows
-        if (out / "tensorboard").exists():
-            purge = _tensorboard_step(rows[-1]) + 1 if rows else 0
-        self.tb = _tensorboard_writer(out, purge) if tensorboard else None
+        folder = out / ("tensorboard" if name == "metrics" else f"tensorboard_{name}")
+        purge = _tensorboard_step(rows[-1]) + 1 if rows else 0  # a resume hides what came after the kept rows
+        self.tb = _tensorboard_writer(folder, purge) if tensorboard else None
 
     def _csv_text(self, rows: list[dict], header: bool) -> str:
         buf = io.StringIO()

@@ -150,12 +150,10 @@ class RunFolder:
         if not self.resumed or (changed and not self.finished):
             atomic_write(cfg_path, json.dumps(config, indent=1))
         self.config = config
+        # what a finished run left as it is says so (already_finished); a redo applies the new values
+        self._not_applied = {k: (old.get(k), config.get(k)) for k in changed} if self.finished else {}
         if self.resumed:
             self.log(f"resuming the {'finished ' if self.finished else ''}run in {self.out}")
-            if changed and self.finished:
-                self.log("its results were made with " + "; ".join(
-                    f"{k} {json.dumps(old.get(k))} (asked now: {json.dumps(config.get(k))})" for k in changed)
-                    + ", kept as they are: choose a new --out to run with the new value")
             for tmp in sorted(self.out.rglob(".*.tmp")):  # atomic_write's, from a write that was killed
                 tmp.unlink()
                 self.log(f"removed an unfinished temporary file {tmp} (the file it was to replace is whole)")
@@ -188,7 +186,7 @@ class RunFolder:
         the run finishes again; the stages before it stay done. ``why`` is logged."""
         for p in (self.out / "summary.json", self.out / "stages" / f"{name}.json"):
             p.unlink(missing_ok=True)
-        self.finished = False
+        self.finished, self._not_applied = False, {}
         atomic_write(self.out / "config.json", json.dumps(self.config, indent=1))  # what the redone stage uses
         self.log(f"stage {name}: to be done again ({why})")
 
@@ -258,6 +256,10 @@ class RunFolder:
         name = "summary.json" if (self.out / "summary.json").exists() else "result.json"
         summary = json.loads((self.out / name).read_text())
         self.log(f"this run has already finished: nothing to do ({self.out / name} unchanged)")
+        if self._not_applied:
+            self.log("it finished with " + "; ".join(f"{k} {json.dumps(a)}" for k, (a, _) in self._not_applied.items())
+                     + "; the value given now (" + "; ".join(json.dumps(b) for _, b in self._not_applied.values())
+                     + ") applies to a new run only: choose a new --out")
         print(finite_json(summary), flush=True)
         return summary
 

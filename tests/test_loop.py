@@ -65,10 +65,13 @@ def test_a_stopped_run_resumes_to_the_same_end(tmp_path):
 
 
 def test_a_finished_run_resumed_runs_no_chunk(tmp_path):
-    train(counter(4, 2), tmp_path / "ckpt", tmp_path, log=lambda s: None)
+    first = train(counter(4, 2), tmp_path / "ckpt", tmp_path, log=lambda s: None)
     lines = []
     done = train(counter(4, 2), tmp_path / "ckpt", tmp_path, log=lines.append)
     assert done.finished and done.start_update == 4 and not any("compiled" in s for s in lines)
+    # the run's rate, not this invocation's (which trained nothing: result.json said 0 steps/s)
+    assert done.seconds == first.seconds > 0 and first.steps_per_s > 0
+    assert done.steps_per_s == pytest.approx(first.steps_per_s)
     assert len(_rows(tmp_path)) == 2
     assert jax.tree.leaves(done.state)[0].shape == (2,)
 

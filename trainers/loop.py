@@ -83,7 +83,8 @@ class Trained:
         start_update: the update it started from (0, or the checkpoint resumed from).
         seconds: training seconds over every invocation (compiles excluded).
         compile_seconds: seconds of this invocation's init or restore and compiles.
-        steps_per_s: environment steps per second of this invocation, every run counted.
+        steps_per_s: environment steps per second of the run's training (every invocation,
+            compiles excluded; every run counted): a run resumed with nothing left to train keeps its rate.
     """
 
     state: Any
@@ -179,4 +180,4 @@ def train(learner: Learner, ckpt_dir: str | Path, metrics_dir: str | Path, *, me
         log(f"stopped at update {u}/{total} (--max-chunks); rerun the same command with --resume to continue")
     return Trained(state=state, update=u, finished=u == total, start_update=start,
                    seconds=seconds_before + train_s, compile_seconds=compile_s,
-                   steps_per_s=(u - start) * learner.steps_per_update * learner.n_runs / max(train_s, 1e-9))
+                   steps_per_s=u * learner.steps_per_update * learner.n_runs / max(seconds_before + train_s, 1e-9))

@@ -236,7 +236,7 @@ def main(argv=None) -> str:
 
         def play(cfg=cfg, rf=rf):
             actor, weights = final_actors(rf, cfg, inputs)
-            rows = play_switches(actor, weights, teams, cfg.senses, cfg.deterministic_eval, args.games)
+            rows = play_switches(actor, weights, teams, cfg.senses, cfg.deterministic_eval, args.games, log=rf.log)
             stamp = raidjax.io.machine()
             atomic_write(rf.path("play.jsonl"), "".join(json.dumps({**r, "games": args.games, "machine": stamp}) + "\n"
                                                         for r in rows))

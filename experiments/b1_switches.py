@@ -26,7 +26,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
-from raidjax.io import HelpFormatter, atomic_write, check_output_file, machine, run_cli, whole_number_arg
+from raidjax.io import HelpFormatter, atomic_write, check_output_file, fmt_seconds, machine, run_cli, whole_number_arg
 
 SWITCHES = ("reference", "carry_cooldowns=False", "clean")
 
@@ -81,13 +81,16 @@ def evaluate(run_dir: Path, games: int, seed: int = 4242) -> list[dict]:
     ``seed`` and ``senses``, or ``PT-HR``) and ``trainers.runs.chained_win_rates`` of its ``games``."""
     trainer = json.loads((run_dir / "config.json").read_text()).get("trainer")
     actor, weights, teams, senses, greedy = trained_teams(run_dir) if trainer == "mapoca" else table_teams(run_dir)
-    return play_switches(actor, weights, teams, senses, greedy, games, seed)
+    return play_switches(actor, weights, teams, senses, greedy, games, seed, log=print)
 
 
 def play_switches(actor, weights, teams: list[dict], senses: str, greedy: bool, games: int,
-                  seed: int = 4242) -> list[dict]:
+                  seed: int = 4242, log=None) -> list[dict]:
     """``evaluate``'s rows for trained teams: ``actor`` with ``weights`` (a leading axis over
-    ``teams``, dicts with ``ranges`` (one range: the reference content's) and ``seed``)."""
+    ``teams``, dicts with ``ranges`` (one range: the reference content's) and ``seed``); ``log``, when
+    given, is called with a progress line after each rule switch."""
+    import time
+
     import raidjax
     from experiments.benchmark1 import _stack, per_team
     from raidjax.playtest import auto_games_per_arena
@@ -100,8 +103,8 @@ def play_switches(actor, weights, teams: list[dict], senses: str, greedy: bool, 
         res = raidjax.playtest(kk, content, policy, games, games_per_arena=k)
         return {"outcome": res["outcome"], "position": res["position"]}
 
-    rows = []
-    for switch in SWITCHES:
+    rows, t0 = [], time.perf_counter()
+    for j, switch in enumerate(SWITCHES):
         out = per_team(key, actor, weights, _stack([_content(t["ranges"][0], switch) for t in teams]), play, senses,
                        greedy)
         rows += [{"switch": switch, "range": t["ranges"][0], "agent": "MA-POCA", "seed": t["seed"], "senses": senses,
@@ -110,6 +113,10 @@ def play_switches(actor, weights, teams: list[dict], senses: str, greedy: bool, 
         for rg in sorted({t["ranges"][0] for t in teams}):
             rows.append({"switch": switch, "range": rg, "agent": "PT-HR",
                          **chained_win_rates(play(key, _content(rg, switch), raidjax.policies.heuristic))})
+        if log is not None:
+            s = time.perf_counter() - t0
+            log(f"played {switch} ({j + 1}/{len(SWITCHES)}): {len(teams)} teams and PT-HR, {games} games each, "
+                f"{fmt_seconds(s)} so far, ETA {fmt_seconds(s / (j + 1) * (len(SWITCHES) - j - 1))}")
     return rows
 
 

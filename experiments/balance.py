@@ -202,7 +202,9 @@ def stage_tester_check(rf: RunFolder, scale: Scale, team: Team, seed: int) -> di
     held = heldout_skills(scale.heldout, space)
     both = np.concatenate([grid, held])  # one program per tester for the grid and the held-out skills
     learned, tester_win = np.split(win_rates(key, both, scale.grid_games, team, *teams["learned"]), [len(grid)])
+    rf.log(f"tester_check: the tester played {len(both)} skills x {scale.grid_games} games; PT-HR next")
     scripted, scripted_win = np.split(win_rates(key, both, scale.grid_games, team, *teams["scripted"]), [len(grid)])
+    rf.log(f"tester_check: PT-HR played them; {len(held)} specialists next")
     rf.write_csv("tester_grid", [{**dict(zip(space.names, map(float, sk), strict=True)),
                                   "learned": float(a), "scripted": float(b)}
                                  for sk, a, b in zip(grid, learned, scripted, strict=True)])
@@ -246,12 +248,14 @@ def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
                                  baselines=False, max_edits=scale.max_edits, tester=teams[name][0],
                                  tester_weights=teams[name][1])["PPO"]
         n = len(gens["target"])
+        rf.log(f"generate: generator {name} ({g + 1} of {len(GENERATORS)}) made {n} skills")
         out["generator"].append(np.full(n, g))
         for k in ("target", "skill", "gen_win_rate", "edits", "reached"):
             out[k].append(gens[k])
     data = {k: np.concatenate(v) for k, v in out.items() if v}
     for t, (policy, weights) in teams.items():  # both testers play every final skill, with the same keys
         data[t] = win_rates(jax.random.PRNGKey(seed + 300), data["skill"], scale.eval_games, team, policy, weights)
+        rf.log(f"generate: the {t} tester played the {len(data['skill'])} skills, {scale.eval_games} games each")
     buf = io.BytesIO()
     np.savez(buf, generators=np.asarray(GENERATORS), parameters=np.asarray(team.space.names), **data)
     atomic_write(rf.out / "generated.npz", buf.getvalue())

@@ -228,7 +228,8 @@ def stage_train(rf: RunFolder, scale: Scale, runs: list[dict], base_seed: int, m
         learner = mapoca_learner(trainer, _run_inputs(members, base_seed, idx[0]), len(members), row=row,
                                  describe=_training_wins)
         done = loop.train(learner, rf.path("checkpoints", "mapoca", f"group{g}"), rf.out / "train",
-                          metrics_name=f"metrics_group{g}", log=lambda s, g=g: rf.log(f"train group {g}: {s}"),
+                          metrics_name=f"metrics_group{g}",
+                          log=lambda s, g=g: rf.log(f"train group {g} ({g + 1} of {len(groups)}): {s}"),
                           checkpoint_every=scale.checkpoint_chunks, max_chunks=left)
         seconds += done.seconds
         compile_seconds += done.compile_seconds

@@ -33,7 +33,7 @@ LABEL = {"heuristic": "PT-HR", "random": "PT-RD"}
 
 
 def calibration_table(n_games: int, seed: int = 0, ranges=RANGES, config: raidjax.EnvConfig | None = None,
-            games_per_arena: int | None = None) -> dict:
+                      games_per_arena: int | None = None, log=None) -> dict:
     """Win rates of PT-HR and PT-RD at each range.
 
     Args:
@@ -43,6 +43,7 @@ def calibration_table(n_games: int, seed: int = 0, ranges=RANGES, config: raidja
         config: ``EnvConfig`` (rules, sub-steps); default ``EnvConfig()``, the reference rules.
         games_per_arena: games each arena plays in a row (``raidjax.playtest``); default
             ``auto_games_per_arena(n_games)``.
+        log: called with a progress line after each policy's games (``None``: silent).
 
     Returns:
         ``{policy: {"win_rate": [..], "stderr": [..], "mean_length": [..]}}`` for
@@ -52,10 +53,15 @@ def calibration_table(n_games: int, seed: int = 0, ranges=RANGES, config: raidja
     batch = jax.tree.map(lambda *x: jnp.stack(x), *contents)  # one content per group of games
     out = {}
     for i, name in enumerate(raidjax.policies.SCRIPTS):  # one compiled program plays both
+        t0 = time.perf_counter()
         res = raidjax.playtest(jax.random.key(seed * 1000 + i), batch, raidjax.policies.script, n_games * len(ranges),
                                weights=jnp.int32(i), games_per_arena=games_per_arena or auto_games_per_arena(n_games))
         wins = np.asarray(res["outcome"] == raidjax.types.WIN).reshape(len(ranges), n_games).mean(axis=1)
         length = np.asarray(res["length"]).reshape(len(ranges), n_games).mean(axis=1)
+        if log is not None:
+            s = time.perf_counter() - t0
+            log(f"{LABEL[name]}: {n_games * len(ranges)} games in {s:.1f} s "
+                f"({n_games * len(ranges) / s:,.0f} games/s{', compile included' if i == 0 else ''})")
         out[name] = {
             "win_rate": [round(float(w), 4) for w in wins],
             "stderr": [round(math.sqrt(max(w * (1 - w), 1e-12) / n_games), 4) for w in wins],
@@ -117,7 +123,7 @@ def main(argv=None) -> int:
     print(f"Playing {args.games} games per cell, {len(RANGES) * 2} cells, rules {args.rules!r}, "
           f"{args.substeps} sub-steps, seed {args.seed}, on {jax.devices()[0].platform} ...",
           file=sys.stderr, flush=True)
-    table = calibration_table(args.games, args.seed, config=config)
+    table = calibration_table(args.games, args.seed, config=config, log=lambda s: print(s, file=sys.stderr, flush=True))
     seconds = time.perf_counter() - t0
     print(f"Rules {args.rules!r}, {args.substeps} sub-steps per decision, seed {args.seed}.\n")
     print(markdown(table, args.games))

@@ -36,7 +36,7 @@ def test_interrupted_run_resumes_mid_training(run):
     # interruption came after chunk 1 of 2 of the first group, checkpointed.
     assert not after["train_done"] and after["groups"] == ["group0"] and after["checkpoints"] == ["1"]
     log = (out / "log.txt").read_text()
-    assert "train group 0: resumed from the checkpoint at update 1/2" in log
+    assert "train group 0 (1 of 2): resumed from the checkpoint at update 1/2" in log
     for g in (0, 1):
         rows = (out / "train" / f"metrics_group{g}.jsonl").read_text().splitlines()
         assert [json.loads(s)["chunk"] for s in rows] == [0, 1]  # one row per chunk, none lost or repeated
@@ -148,11 +148,13 @@ def test_heatmap_figure_orientation_shared_scale_and_redraw(tmp_path):
         assert png == tmp_path / "figures" / "heatmaps.png" and im.size[0] > 300 and im.size[1] > 300
 
 
-def test_switches_play_the_table_teams_and_pt_hr_by_chain_position(run, tmp_path):
+def test_switches_play_the_table_teams_and_pt_hr_by_chain_position(run, tmp_path, capsys):
     from experiments import b1_switches
 
     out = tmp_path / "switches.jsonl"
     b1_switches.main([str(run[0]), "--games", "20", "--out", str(out)])
+    progress = [s for s in capsys.readouterr().out.splitlines() if s.startswith("played ")]
+    assert [s.split(" (")[1][:3] for s in progress] == ["1/3", "2/3", "3/3"] and "ETA" in progress[0]
     rows = [json.loads(s) for s in out.read_text().splitlines()]
     table = [r for r in benchmark1.runs_of(benchmark1.SCALES["smoke"]) if r["group"] == "table"]
     for switch in b1_switches.SWITCHES:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 from pathlib import Path
 
 import jax
@@ -89,8 +90,6 @@ def play_switches(actor, weights, teams: list[dict], senses: str, greedy: bool, 
     """``evaluate``'s rows for trained teams: ``actor`` with ``weights`` (a leading axis over
     ``teams``, dicts with ``ranges`` (one range: the reference content's) and ``seed``); ``log``, when
     given, is called with a progress line after each rule switch."""
-    import time
-
     import raidjax
     from experiments.benchmark1 import _stack, per_team
     from raidjax.playtest import auto_games_per_arena

@@ -126,8 +126,9 @@ def _apply_override(key: str, value, stats: dict, slots: list[dict], who: str, t
     )
 
 
-def _names(players) -> list[str]:
-    """The class preset names of ``players`` (a name means a team of 3), checked."""
+def player_names(players) -> list[str]:
+    """The class preset names of ``players`` (a name means a team of 3), checked (one ``ValueError``
+    line naming the value); plain Python, so a config can check its team before JAX starts."""
     allowed = f"a class preset name or a list of 1 to 8 of them, from {sorted(catalogue.CLASSES)}"
     if isinstance(players, str):
         return [validate.name("players", players, catalogue.CLASSES, "class preset")] * 3
@@ -203,7 +204,7 @@ def make_params(
             ``EnvConfig``); a value that is NaN, not a whole number where one is required, or
             outside its allowed range.
     """
-    names = _names(players)
+    names = player_names(players)
     validate.name("boss", boss, catalogue.BOSSES, "boss preset")
     per_player, boss_map = _override_maps(player_overrides, boss_overrides, len(names))
     if skill_range is not None:

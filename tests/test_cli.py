@@ -75,7 +75,8 @@ MISTAKES = [
      ["--parameters", "skill1.range", "--out", "{tmp}/run"],
      "error: --parameters: value skill1.range; allowed: with --content-box"),
     ("train-nine-players", "trainers.mapoca_cli", ["--players", *["mage"] * 9, "--out", "{tmp}/run"],
-     "error: players: value ['mage', 'mage', 'mage', 'mage', 'mage', 'mage', 'mage', 'mage', 'mage']; allowed: 1-8"),
+     "error: players: value ('mage', 'mage', 'mage', 'mage', 'mage', 'mage', 'mage', ... is 9 players; allowed: "
+     "a class preset name or a list of 1 to 8 of them"),
     ("ablation-resume-nothing", "experiments.ablation", ["--out", "{tmp}/none", "--resume"],
      "error: --resume: {tmp}/none holds no started variant to resume"),
     ("ablation-out-file", "experiments.ablation", ["--out", "{tmp}/ppo_run/metrics.csv"],

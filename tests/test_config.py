@@ -90,9 +90,9 @@ def test_every_mapoca_field_added_since_says_what_older_runs_played_with():
 
 
 @pytest.mark.parametrize("learner, fields, message", [
-    ("mapoca", {"players": ["mage"] * 9}, "players: value ['mage', 'mage', "),
+    ("mapoca", {"players": ["mage"] * 9}, "players: value ('mage', 'mage', "),
     ("ppo_pcgrl", {"players": ["wizard", "mage", "mage"], "parameters": ["mage.skill1.range"]},
-     "players: value ['wizard', 'mage', 'mage']; allowed: 1-8 names of ["),
+     "players[0]: value 'wizard' is an unknown class preset; allowed: a class preset, one of ["),
     ("mapoca", {"n_minibatches": 7}, "n_minibatches: value 7; allowed: a divisor of the "),
     ("ppo_pcgrl", {"target": [-5, 7]}, "target: value (-5, 7); allowed: (low, high) win rates with 0 <= low"),
     ("mapoca", {"total_steps": 2**31}, "total_steps: value 2147483648; allowed: a whole number in [1, 2147483647]"),

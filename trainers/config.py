@@ -15,7 +15,7 @@ import dataclasses
 import json
 from pathlib import Path
 
-from raidjax import catalogue, pcg, validate
+from raidjax import content, pcg, validate
 from raidjax.types import SENSES
 from raidjax.validate import check_fields, is_number
 from trainers.returns import EPISODE_ENDS
@@ -181,7 +181,7 @@ class Config:
                     isinstance(v, str) for v in value):
                 raise ValueError(f"{name}: value {value!r}; allowed: a list of names")
             object.__setattr__(self, name, tuple(value))
-        check_players(self.players)
+        content.player_names(self.players)
         if self.content_box:
             pcg.make_space(self.parameters, self.players)  # ValueError naming a bad parameter
         validate.name("senses", self.senses, SENSES, "observation and action space")
@@ -214,12 +214,6 @@ class Config:
     def from_dict(cls, d: dict) -> Config:
         """Inverse of ``to_dict``; raises ``ValueError`` naming unknown keys."""
         return cls().replace(**known_fields(cls, d))
-
-
-def check_players(players: tuple[str, ...]) -> None:
-    """A team of 1 to 8 class presets (``raidjax.catalogue.CLASSES``), else one ``ValueError`` line."""
-    if not 1 <= len(players) <= 8 or not all(c in catalogue.CLASSES for c in players):
-        raise ValueError(f"players: value {list(players)}; allowed: 1-8 names of {sorted(catalogue.CLASSES)}")
 
 
 def known_fields(cls, d: dict) -> dict:
@@ -343,7 +337,7 @@ class PPOConfig:
             if not isinstance(value, tuple | list) or not all(isinstance(v, str) for v in value):
                 raise ValueError(f"{name}: value {value!r}; allowed: a list of names")
             object.__setattr__(self, name, tuple(value))
-        check_players(self.players)
+        content.player_names(self.players)
         target = self.target
         if (not isinstance(target, tuple | list) or len(target) != 2 or not all(is_number(x) for x in target)
                 or not 0 <= target[0] <= target[1] <= 1):

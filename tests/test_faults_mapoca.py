@@ -105,7 +105,6 @@ def test_flipped_bytes_orbax_reads_without_error_fail_the_pytree_digest(tmp_path
         capsys.readouterr().err)
 
 
-
 def test_rejected_checkpoints_are_set_aside_without_overwriting_one_another(tmp_path, capsys):
     """Two groups of one run (Benchmark 1's ``checkpoints/mapoca/group<g>``) each reject their update
     2, then one of them saves update 2 again and rejects it again: three folders set aside, none

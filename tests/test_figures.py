@@ -61,11 +61,9 @@ def test_speed_figure_reads_the_stored_vs_smax_runs_and_skips_other_lines(tmp_pa
         speed_figure.main([str(tmp_path / "missing.json"), "--out", str(out)])
 
 
-@pytest.mark.parametrize("module", ["calibration_figure", "b1_compare"])
-def test_a_bad_out_is_refused_before_reading_or_drawing(module, tmp_path, capsys):
-    inputs = {"calibration_figure": [str(tmp_path / "missing.json")],
-              "b1_compare": [str(tmp_path / "missing"), "--labels", "x"]}[module]
-    main = {"calibration_figure": calibration_figure.main, "b1_compare": b1_compare.main}[module]
+@pytest.mark.parametrize("main, inputs", [(calibration_figure.main, ["missing.json"]),
+                                          (b1_compare.main, ["missing", "--labels", "x"])])
+def test_a_bad_out_is_refused_before_reading_or_drawing(main, inputs, tmp_path, capsys):
     for out, why in ((tmp_path, "is a folder"), (tmp_path / "nowhere" / "f.png", "is in a folder that does not exist"),
                      (tmp_path / "f.pdf", "does not end in .png")):
         with pytest.raises(SystemExit) as e:

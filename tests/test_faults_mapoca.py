@@ -15,6 +15,7 @@ import pytest
 from fault_inject import flip, largest_state_file, run, same_run, steps, updates
 
 from trainers import checkpoint, mapoca_cli
+from trainers.runfolder import LOCK_NAME
 
 TINY = {"n_arenas": 4, "n_steps": 8, "n_minibatches": 2, "update_epochs": 1, "hidden": 8, "layers": 1,
         "heads": 1, "updates_per_chunk": 1, "checkpoint_every": 1}
@@ -163,7 +164,9 @@ def test_refusals_are_one_line_and_touch_nothing(tmp_path, tiny_config, capsys):
     result = mapoca_cli.main([*args, "--out", str(out), "--resume"])  # finished: a no-op that says so
     assert "already finished: nothing to do" in capsys.readouterr().out
     assert result == json.loads((out / "result.json").read_text())
-    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file() and p.name != "log.txt"} == files
+    # what it may write: its log line, and the lock file's holder (this process, now)
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file() and p.name not in ("log.txt", LOCK_NAME)} == {
+        p: b for p, b in files.items() if p.name != LOCK_NAME}
 
     for step in steps(out / "checkpoints"):  # every checkpoint bad: a one-line error, no fallback left
         f = largest_state_file(out / "checkpoints" / str(step))

@@ -1,14 +1,21 @@
 """Run folders (``trainers.runfolder.RunFolder``) without a trainer: what ``config.json`` says after a
-resume with other values of the settings a run may change, and the stage records a kill leaves."""
+resume with other values of the settings a run may change, the stage records a kill leaves, and the
+lock that keeps a second process out of a folder in use."""
 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
 from trainers import runfolder
-from trainers.runfolder import RunFolder
+from trainers.runfolder import RunFolder, RunFolderError
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def saved(out) -> dict:
@@ -57,3 +64,73 @@ def test_a_stage_killed_while_it_is_stored_is_done_again_and_counted_once(tmp_pa
     assert not rf.done("train") and rf.stage_seconds() == {}
     assert rf.stage("train", lambda: {"loss": 2.0}) == {"loss": 2.0}  # run again, not skipped
     assert rf.done("train") and list(rf.records()) == ["train"] and set(rf.stage_seconds()) == {"train"}
+
+
+# A second process opening the run folder: it holds the folder until it is killed or its stdin closes.
+HOLDER = """
+import sys
+from trainers.runfolder import RunFolder, RunFolderError
+try:
+    rf = RunFolder(sys.argv[1], {"steps": 8}, resume=True)
+except RunFolderError as e:
+    print("refused:", e, flush=True)
+    sys.exit(3)
+print("holding", flush=True)
+sys.stdin.read()
+"""
+
+
+def other_process(out) -> subprocess.Popen:
+    """``HOLDER`` on ``out`` in a new process, once it has said whether it holds the folder."""
+    child = subprocess.Popen([sys.executable, "-c", HOLDER, str(out)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    child.said = ""
+    while not child.said.startswith(("holding", "refused")):  # past the run folder's own log lines
+        line = child.stdout.readline()
+        assert line, "the other process ended without a word"
+        child.said = line.strip()
+    return child
+
+
+def test_a_folder_in_use_by_another_process_is_refused_until_that_process_ends(tmp_path):
+    out = tmp_path / "run"
+    RunFolder(out, {"steps": 8}).close()
+    child = other_process(out)
+    assert child.said == "holding"
+    files = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    with pytest.raises(RunFolderError, match=rf"{out} is in use by process {child.pid} on .*: wait for that run"):
+        RunFolder(out, {"steps": 8}, resume=True)
+    with pytest.raises(RunFolderError, match="already holds a run"):  # the settings' refusals come first
+        RunFolder(out, {"steps": 8})
+    child.kill()  # however it ends, the system releases its lock: no stale lock to remove by hand
+    child.wait()
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == files  # the refusals touched nothing
+    with RunFolder(out, {"steps": 8}, resume=True) as rf:
+        assert rf.resumed
+        assert other_process(out).said.startswith(f"refused: {out} is in use by process {os.getpid()} on ")
+    child = other_process(out)  # the with block released it
+    assert child.said == "holding"
+    child.communicate("")
+
+
+def test_this_process_may_open_its_own_folder_again_and_holds_it_until_the_last_close(tmp_path):
+    out = tmp_path / "run"
+    first = RunFolder(out, {"steps": 8})
+    second = RunFolder(out, {"steps": 8}, resume=True)  # e.g. a notebook resuming its own run
+    first.close()
+    first.close()  # idempotent: one release per object
+    assert other_process(out).said.startswith("refused:")
+    del second  # collected: released as by close()
+    child = other_process(out)
+    assert child.said == "holding"
+    child.communicate("")
+
+
+def test_a_refusal_under_the_lock_releases_it(tmp_path, monkeypatch):
+    out = tmp_path / "run"
+    RunFolder(out, {"steps": 8}).close()
+    monkeypatch.setattr(runfolder, "atomic_write", lambda *a: (_ for _ in ()).throw(OSError("disk full")))
+    with pytest.raises(OSError, match="disk full") as caught:
+        RunFolder(out, {"steps": 8, "eval_games": 5}, resume=True, ignore=("eval_games",))  # writes config.json
+    # the traceback kept (as a notebook keeps the last one) holds the half-made RunFolder: not its lock
+    assert caught.tb is not None and other_process(out).said == "holding"

@@ -26,6 +26,12 @@ Layout of ``DIR`` (the pipelines use all of it, the trainers the first lines)::
 Every file is written to a temporary name and renamed into place, so an interrupted run never
 leaves a half-written file: rerunning the same command with ``--resume`` resumes after the last
 finished stage.
+
+One process at a time: a job holds an advisory lock on ``DIR/.runfolder.lock`` (``fcntl.flock``)
+while it works in the folder, and a second process that opens the folder is refused, naming the
+process that holds it. The operating system releases the lock when that process ends, however it
+ends (a killed run leaves no stale lock). Within one process the folder may be opened again (a
+notebook resuming its own run).
 """
 
 from __future__ import annotations
@@ -33,7 +39,10 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
+import socket
 import time
+import weakref
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -77,6 +86,53 @@ def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:
     return out
 
 
+try:  # POSIX; where it is missing (Windows) a run folder is not locked
+    import fcntl
+except ImportError:  # pragma: no cover
+    fcntl = None
+
+LOCK_NAME = ".runfolder.lock"
+# The locks this process holds: folder (resolved) -> [open lock file, RunFolder objects using it].
+# flock locks belong to an open file, so a second open in the same process would refuse the first.
+_HELD: dict[str, list] = {}
+
+
+def _lock(folder: Path) -> str | None:
+    """Take (or, held by this process already, share) the lock of ``folder`` (which exists); return
+    its key for ``_unlock``, or ``None`` where the file system cannot lock. Raises
+    ``RunFolderError`` naming the holder when another process holds it."""
+    key = str(folder.resolve())
+    if key in _HELD:
+        _HELD[key][1] += 1
+        return key
+    if fcntl is None:
+        return None
+    fd = os.open(folder / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)  # not truncated: it names the holder
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
+        os.close(fd)
+        raise RunFolderError(f"{folder} is in use by {holder}: wait for that run to end (or stop it), "
+                             "then rerun with --resume") from None
+    except OSError:  # a file system without locks (some network mounts): the folder is used unlocked
+        os.close(fd)
+        return None
+    os.ftruncate(fd, 0)
+    os.write(fd, f"process {os.getpid()} on {socket.gethostname()} (since {utc_now()})".encode())
+    _HELD[key] = [fd, 1]
+    return key
+
+
+def _unlock(key: str | None) -> None:
+    """Release one use of the lock ``_lock`` returned; the last use closes the file (unlocking it)."""
+    if key is None or key not in _HELD:
+        return
+    _HELD[key][1] -= 1
+    if _HELD[key][1] == 0:
+        os.close(_HELD.pop(key)[0])
+
+
 SEED_MAX = 2**31 - 1  # a --seed's largest value, as raidjax.calibrate's and render's (offsets stay well in range)
 
 
@@ -114,12 +170,16 @@ class RunFolder:
             evaluation); the recorded value is replaced by the new one, unless the run has
             finished: its ``config.json`` keeps describing the results beside it (until ``redo``).
 
+    The object holds the folder's lock (the module docstring) until ``close()`` (or the end of a
+    ``with`` block, or its collection); another process opening the folder meanwhile is refused.
+
     Attributes:
         resumed: whether a run was found and is being continued.
         finished: whether that run had already finished (``summary.json`` or ``result.json``).
 
     Raises:
-        RunFolderError: the cases above, each in one line naming the folder and what to do.
+        RunFolderError: the cases above, and a folder in use by another process, each in one line
+            naming the folder and what to do.
     """
 
     def __init__(self, out: str | Path, config: dict, resume: bool = False, ignore: tuple[str, ...] = ()):
@@ -127,24 +187,50 @@ class RunFolder:
         self.t0 = time.perf_counter()
         cfg_path = self.out / "config.json"
         config = json.loads(json.dumps(config))
-        self.resumed = cfg_path.exists()
-        if self.resumed and not resume:
-            raise RunFolderError(f"{self.out} already holds a run: pass --resume to continue it, or choose a new --out")
-        if not self.resumed and resume:
-            raise RunFolderError(f"--resume: {self.out} holds no run to resume (no config.json); "
-                                 "drop --resume to start one")
-        if self.resumed:
-            try:
-                old = json.loads(cfg_path.read_text())
-            except json.JSONDecodeError as e:
-                raise RunFolderError(f"{cfg_path} is not valid JSON ({e}); the run cannot be resumed") from e
-            old = upgrade_settings(old)  # a run saved by older code, as today's code writes it
-            diff = _differences({k: v for k, v in old.items() if k not in ignore},
-                                {k: v for k, v in config.items() if k not in ignore})
-            if diff:
-                raise RunFolderError(f"{self.out} holds a run with other settings ({'; '.join(diff)}): "
-                                     "rerun its own command with --resume, or choose a new --out")
+        self._check(cfg_path, config, resume, ignore)  # a refusal touches nothing
         self.out.mkdir(parents=True, exist_ok=True)
+        # held until close() or until this object is collected; released also on a refusal below
+        self._release = weakref.finalize(self, _unlock, _lock(self.out))
+        try:  # again under the lock: another process may have started or changed the run meanwhile
+            self._open(cfg_path, config, ignore, self._check(cfg_path, config, resume, ignore))
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        """Release the folder's lock (also done when the object is collected; idempotent)."""
+        self._release()
+
+    def __enter__(self) -> RunFolder:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _check(self, cfg_path: Path, config: dict, resume: bool, ignore: tuple[str, ...]) -> dict | None:
+        """The refusals of ``__init__`` (reading only); the saved settings of the run found, or ``None``."""
+        if cfg_path.exists() and not resume:
+            raise RunFolderError(f"{self.out} already holds a run: pass --resume to continue it, or choose a new --out")
+        if not cfg_path.exists():
+            if resume:
+                raise RunFolderError(f"--resume: {self.out} holds no run to resume (no config.json); "
+                                     "drop --resume to start one")
+            return None
+        try:
+            old = json.loads(cfg_path.read_text())
+        except json.JSONDecodeError as e:
+            raise RunFolderError(f"{cfg_path} is not valid JSON ({e}); the run cannot be resumed") from e
+        old = upgrade_settings(old)  # a run saved by older code, as today's code writes it
+        diff = _differences({k: v for k, v in old.items() if k not in ignore},
+                            {k: v for k, v in config.items() if k not in ignore})
+        if diff:
+            raise RunFolderError(f"{self.out} holds a run with other settings ({'; '.join(diff)}): "
+                                 "rerun its own command with --resume, or choose a new --out")
+        return old
+
+    def _open(self, cfg_path: Path, config: dict, ignore: tuple[str, ...], old: dict | None) -> None:
+        """``__init__``'s writes, under the folder's lock, for the saved settings ``old`` (``None``: a new run)."""
+        self.resumed = old is not None
         self.finished = self.resumed and any((self.out / n).exists() for n in ("summary.json", "result.json"))
         changed = [k for k in ignore if self.resumed and config.get(k) != old.get(k)]
         if not self.resumed or (changed and not self.finished):

@@ -197,28 +197,28 @@ def run_mapoca(cfg: Config, out: str | Path, *, preset: str = "cpu", seeds: int 
     t_start = time.perf_counter()
     settings = {"trainer": "mapoca", "preset": preset, "seeds": seeds, "seed": seed,
                 "config": {k: v for k, v in cfg.to_dict().items() if k != "eval_games"}, "eval_games": cfg.eval_games}
-    rf = RunFolder(out, settings, resume=resume, ignore=("eval_games",))
-    if rf.finished:
-        return rf.already_finished()
-    _say(f"{cfg.num_updates} updates x {cfg.decisions_per_update} decisions x {seeds} seeds; {machine()}")
-    keys = jax.random.split(jax.random.PRNGKey(seed), seeds)
-    learner = mapoca_learner(make_trainer(cfg), (keys,), seeds)
-    every = max(1, -(-cfg.checkpoint_every // cfg.updates_per_chunk))
-    done = train(learner, rf.out / "checkpoints", rf.out, log=_say, checkpoint_every=every, max_chunks=max_chunks)
-    if not done.finished:
-        return {"stopped_at_chunk": done.update // cfg.updates_per_chunk}
-    result = {"preset": preset, "skill_ranges": list(cfg.skill_ranges), "content_box": cfg.content_box,
-              "seeds": seeds, "env_steps": cfg.num_updates * cfg.decisions_per_update,
-              "env_steps_per_s": round(done.steps_per_s, 1), "compile_seconds": round(done.compile_seconds, 2),
-              "train_seconds": round(done.seconds, 2)}
-    if cfg.eval_games > 0:
-        t_eval = time.perf_counter()
-        result.update(evaluate_teams(rf.out, cfg, seeds, jax.random.key(seed + 12345)))
-        result["eval_seconds"] = round(time.perf_counter() - t_eval, 2)
-    result["seconds"] = round(time.perf_counter() - t_start, 2)
-    atomic_write(rf.out / "result.json", json.dumps(result, indent=1))
-    print(json.dumps(result), flush=True)
-    return result
+    with RunFolder(out, settings, resume=resume, ignore=("eval_games",)) as rf:
+        if rf.finished:
+            return rf.already_finished()
+        _say(f"{cfg.num_updates} updates x {cfg.decisions_per_update} decisions x {seeds} seeds; {machine()}")
+        keys = jax.random.split(jax.random.PRNGKey(seed), seeds)
+        learner = mapoca_learner(make_trainer(cfg), (keys,), seeds)
+        every = max(1, -(-cfg.checkpoint_every // cfg.updates_per_chunk))
+        done = train(learner, rf.out / "checkpoints", rf.out, log=_say, checkpoint_every=every, max_chunks=max_chunks)
+        if not done.finished:
+            return {"stopped_at_chunk": done.update // cfg.updates_per_chunk}
+        result = {"preset": preset, "skill_ranges": list(cfg.skill_ranges), "content_box": cfg.content_box,
+                  "seeds": seeds, "env_steps": cfg.num_updates * cfg.decisions_per_update,
+                  "env_steps_per_s": round(done.steps_per_s, 1), "compile_seconds": round(done.compile_seconds, 2),
+                  "train_seconds": round(done.seconds, 2)}
+        if cfg.eval_games > 0:
+            t_eval = time.perf_counter()
+            result.update(evaluate_teams(rf.out, cfg, seeds, jax.random.key(seed + 12345)))
+            result["eval_seconds"] = round(time.perf_counter() - t_eval, 2)
+        result["seconds"] = round(time.perf_counter() - t_start, 2)
+        atomic_write(rf.out / "result.json", json.dumps(result, indent=1))
+        print(json.dumps(result), flush=True)
+        return result
 
 
 def _rounded(x, key: str = ""):
@@ -279,39 +279,40 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
         settings.update(tester=checkpoint.digest(weights))
         if not loaded:
             settings.update(tester_run=str(Path(tester).resolve()))
-    rf = RunFolder(out, settings, resume=resume, ignore=("evaluation", "tester_run"))
-    if rf.finished:
-        return rf.already_finished()
-    pairs, labels = target_groups(config, seeds)
-    keys = jax.random.split(jax.random.key(seed), len(labels))
-    _say(f"preset={preset} groups={len(labels)} updates={config.num_updates} "
-           f"steps/update={config.n_arenas * config.n_steps} n_games={config.n_games}")
-    learner = ppo_learner(config, keys, jnp.asarray(pairs), max(1, chunk), **team)
-    done = train(learner, rf.out / "checkpoints", rf.out, log=_say, max_chunks=max_chunks, max_to_keep=2)
-    if not done.finished:
-        return {"stopped_at_update": done.update}
-    t_eval = time.perf_counter()
-    res = {"train_seconds": done.seconds, "preset": preset, "seeds": seeds,
-           "total_steps": config.num_updates * config.n_arenas * config.n_steps, "groups": len(labels),
-           "n_games": config.n_games, "cpu_count": os.cpu_count()}
-    if ev["eval_episodes"] > 0:
-        gens = generate_episodes(jax.random.key(seed + 1), {"PPO": PPOGenerator(config, done.state["params"], labels)},
-                                 gen_games=ev["eval_gen_games"], greedy=ev["greedy"], episodes=ev["eval_episodes"],
-                                 eval_games=ev["eval_games"], baselines=not ev["no_baselines"], **team)
-        summ = pcg.quality.summarize(gens)
-        atomic_write(rf.out / "eval.json", finite_json(summ, indent=1))
-        for name, s in summ.items():
-            c = s["controllability"]
-            _say(f"{name}: mean error {c['err_mean']:.3f} ± {c['err_sd']:.3f} (n={c['n']}) yield {s['yield']:.2f} "
-                   f"edits {s['edits_mean']:.1f} PC1 SD {s['pc1_sd_mean']:.3f}")
-        res.update({"mean_error": summ["PPO"]["controllability"]["err_mean"],
-                    "heuristic_mean_error": summ.get("PCG-HR", {}).get("controllability", {}).get("err_mean"),
-                    "random_mean_error": summ.get("PCG-RD", {}).get("controllability", {}).get("err_mean"),
-                    "pc1_sd": {n: s["pc1_sd_mean"] for n, s in summ.items()},
-                    "yield": {n: s["yield"] for n, s in summ.items()},
-                    "eval_seconds": time.perf_counter() - t_eval})
-    res["seconds"] = time.perf_counter() - t_start
-    res = json.loads(finite_json(_rounded(res)))  # NaN as null: valid JSON
-    atomic_write(rf.out / "result.json", json.dumps(res, indent=1))
-    print(json.dumps(res), flush=True)
-    return res
+    with RunFolder(out, settings, resume=resume, ignore=("evaluation", "tester_run")) as rf:
+        if rf.finished:
+            return rf.already_finished()
+        pairs, labels = target_groups(config, seeds)
+        keys = jax.random.split(jax.random.key(seed), len(labels))
+        _say(f"preset={preset} groups={len(labels)} updates={config.num_updates} "
+             f"steps/update={config.n_arenas * config.n_steps} n_games={config.n_games}")
+        learner = ppo_learner(config, keys, jnp.asarray(pairs), max(1, chunk), **team)
+        done = train(learner, rf.out / "checkpoints", rf.out, log=_say, max_chunks=max_chunks, max_to_keep=2)
+        if not done.finished:
+            return {"stopped_at_update": done.update}
+        t_eval = time.perf_counter()
+        res = {"train_seconds": done.seconds, "preset": preset, "seeds": seeds,
+               "total_steps": config.num_updates * config.n_arenas * config.n_steps, "groups": len(labels),
+               "n_games": config.n_games, "cpu_count": os.cpu_count()}
+        if ev["eval_episodes"] > 0:
+            ppo = PPOGenerator(config, done.state["params"], labels)
+            gens = generate_episodes(jax.random.key(seed + 1), {"PPO": ppo},
+                                     gen_games=ev["eval_gen_games"], greedy=ev["greedy"], episodes=ev["eval_episodes"],
+                                     eval_games=ev["eval_games"], baselines=not ev["no_baselines"], **team)
+            summ = pcg.quality.summarize(gens)
+            atomic_write(rf.out / "eval.json", finite_json(summ, indent=1))
+            for name, s in summ.items():
+                c = s["controllability"]
+                _say(f"{name}: mean error {c['err_mean']:.3f} ± {c['err_sd']:.3f} (n={c['n']}) yield {s['yield']:.2f} "
+                     f"edits {s['edits_mean']:.1f} PC1 SD {s['pc1_sd_mean']:.3f}")
+            res.update({"mean_error": summ["PPO"]["controllability"]["err_mean"],
+                        "heuristic_mean_error": summ.get("PCG-HR", {}).get("controllability", {}).get("err_mean"),
+                        "random_mean_error": summ.get("PCG-RD", {}).get("controllability", {}).get("err_mean"),
+                        "pc1_sd": {n: s["pc1_sd_mean"] for n, s in summ.items()},
+                        "yield": {n: s["yield"] for n, s in summ.items()},
+                        "eval_seconds": time.perf_counter() - t_eval})
+        res["seconds"] = time.perf_counter() - t_start
+        res = json.loads(finite_json(_rounded(res)))  # NaN as null: valid JSON
+        atomic_write(rf.out / "result.json", json.dumps(res, indent=1))
+        print(json.dumps(res), flush=True)
+        return res

@@ -134,3 +134,19 @@ def test_a_refusal_under_the_lock_releases_it(tmp_path, monkeypatch):
         RunFolder(out, {"steps": 8, "eval_games": 5}, resume=True, ignore=("eval_games",))  # writes config.json
     # the traceback kept (as a notebook keeps the last one) holds the half-made RunFolder: not its lock
     assert caught.tb is not None and other_process(out).said == "holding"
+
+
+def test_a_folder_deleted_and_made_again_is_locked_anew(tmp_path):
+    import shutil
+
+    out = tmp_path / "run"
+    kept = RunFolder(out, {"steps": 8})  # still alive (a notebook's variable) when the folder goes
+    shutil.rmtree(out)
+    again = RunFolder(out, {"steps": 8})  # a new run in the same place: its own lock, really taken
+    assert other_process(out).said.startswith(f"refused: {out} is in use by process {os.getpid()}")
+    kept.close()
+    assert other_process(out).said.startswith("refused:")
+    again.close()
+    child = other_process(out)
+    assert child.said == "holding"
+    child.communicate("")

@@ -92,22 +92,24 @@ except ImportError:  # pragma: no cover
     fcntl = None
 
 LOCK_NAME = ".runfolder.lock"
-# The locks this process holds: folder (resolved) -> [open lock file, RunFolder objects using it].
-# flock locks belong to an open file, so a second open in the same process would refuse the first.
-_HELD: dict[str, list] = {}
+# The locks this process holds: (lock file, its inode) -> [its open descriptor, RunFolder objects using
+# it]. A flock lock belongs to an open file, so a second open in this process would refuse the first;
+# the inode tells a lock file deleted with its folder (and made again) from the one held.
+_HELD: dict[tuple[str, int], list] = {}
 
 
-def _lock(folder: Path) -> str | None:
+def _lock(folder: Path) -> tuple[str, int] | None:
     """Take (or, held by this process already, share) the lock of ``folder`` (which exists); return
     its key for ``_unlock``, or ``None`` where the file system cannot lock. Raises
     ``RunFolderError`` naming the holder when another process holds it."""
-    key = str(folder.resolve())
-    if key in _HELD:
-        _HELD[key][1] += 1
-        return key
     if fcntl is None:
         return None
     fd = os.open(folder / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)  # not truncated: it names the holder
+    key = (str((folder / LOCK_NAME).resolve()), os.fstat(fd).st_ino)
+    if key in _HELD:
+        os.close(fd)
+        _HELD[key][1] += 1
+        return key
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -124,7 +126,7 @@ def _lock(folder: Path) -> str | None:
     return key
 
 
-def _unlock(key: str | None) -> None:
+def _unlock(key: tuple[str, int] | None) -> None:
     """Release one use of the lock ``_lock`` returned; the last use closes the file (unlocking it)."""
     if key is None or key not in _HELD:
         return

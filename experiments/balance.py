@@ -246,7 +246,8 @@ def stage_generate(rf: RunFolder, scale: Scale, team: Team, seed: int) -> dict:
         gens = generate_episodes(jax.random.PRNGKey(seed + 200 + g), {"PPO": PPOGenerator(config, w, labels)},
                                  gen_games=scale.gen_games, greedy=False, episodes=scale.episodes, eval_games=0,
                                  baselines=False, max_edits=scale.max_edits, tester=teams[name][0],
-                                 tester_weights=teams[name][1])["PPO"]
+                                 tester_weights=teams[name][1],
+                                 log=lambda s, g=g: rf.log(f"generate: generator {GENERATORS[g]}: {s}"))["PPO"]
         n = len(gens["target"])
         rf.log(f"generate: generator {name} ({g + 1} of {len(GENERATORS)}) made {n} skills")
         out["generator"].append(np.full(n, g))

@@ -323,7 +323,8 @@ def stage_generate(run: RunFolder, scale: Scale, seed: int, protocol: str = "pap
         if not path.exists():
             t, start = time.perf_counter(), utc_now()
             key = jax.random.fold_in(jax.random.key(seed + 1), i)
-            gens = generate_episodes(key, generators, **kwargs)
+            gens = generate_episodes(key, generators, **kwargs,
+                                     log=lambda s, i=i: run.log(f"generate: part {i + 1}/{scale.parts}: {s}"))
             run.record(part_record(i), start, time.perf_counter() - t)  # first: a saved part has its record
             save_generated(path, gens)
             done_here += 1

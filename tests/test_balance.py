@@ -164,7 +164,10 @@ def test_smoke_loop_on_a_mixed_team_with_eight_parameters(tmp_path, capsys):
     testers on every generated content; then the report is recomputed from generated.npz."""
     out = tmp_path / "bal"
     summary = balance.main(["--scale", "smoke", "--out", str(out), "--players", *MIXED, "--parameters", *EIGHT])
-    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["scale"] == "smoke"
+    printed = capsys.readouterr().out
+    assert json.loads(printed.strip().splitlines()[-1])["scale"] == "smoke"
+    for g in balance.GENERATORS:  # each generation's progress, measurement by measurement
+        assert f"generate: generator {g}: measurement 1/4: " in printed
     tester = json.loads((out / "tester" / "result.json").read_text())
     assert tester["content_box"] and tester["env_steps"] == balance.SCALES["smoke"].tester["total_steps"]
     cfg = json.loads((out / "tester" / "config.json").read_text())["config"]

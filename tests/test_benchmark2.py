@@ -71,6 +71,12 @@ def test_smoke_run_files_numbers_resume_and_scale_guard(tmp_path, smoke_run):
               "stages/generate.json", "stages/report.json", "stages/records.json"]:
         assert (out / f).is_file(), f
     assert json.loads((out / "config.json").read_text())["scale"] == "smoke"
+    # a line after each of a part's measurements (the start's and 3 edits' of strict 4-decision
+    # episodes), with an ETA from the second
+    for part in ("1/2", "2/2"):
+        lines = [s for s in (out / "log.txt").read_text().splitlines() if f"generate: part {part}: measurement" in s]
+        assert [s.split("measurement ")[1].split(":")[0] for s in lines] == ["1/4", "2/4", "3/4", "4/4"]
+        assert "ETA" not in lines[0] and all("ETA at most" in s for s in lines[1:]), lines
     methods = b2.methods_of(b2.SCALES["smoke"])  # both PPOs (the paper's and raidjax's), then the baselines
     assert methods == ("PPO, target observed", "PPO", "PCG-HR", "PCG-RD")
     assert set(summary["ci95"]) == set(methods) and all(len(v) == 2 for c in summary["ci95"].values()

@@ -18,8 +18,10 @@ def test_ppo_pcgrl_survives_a_chain_of_kills_and_a_truncated_checkpoint(tmp_path
             "--eval-gen-games", "2", "--eval-games", "2", "--no-baselines"]
     ref, out = tmp_path / "uninterrupted", tmp_path / "faulty"
     ppo_pcgrl_cli.main([*args, "--eval-episodes", "1", "--out", str(ref)])  # the evaluation, here only
-    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    printed = capsys.readouterr().out
+    last = json.loads(printed.strip().splitlines()[-1])
     assert last == json.loads((ref / "result.json").read_text())
+    assert "evaluation: measurement 1/5: " in printed  # the evaluation's progress (a start and 4 edits at most)
     assert last["total_steps"] == 64 and set(last["yield"]) == {"PPO"} and last["heuristic_mean_error"] is None
     assert len(rows(ref)[0]["final_error_per_group"]) == 1 and json.loads((ref / "eval.json").read_text())["PPO"]
     ckpt = out / "checkpoints"

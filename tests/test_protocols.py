@@ -287,3 +287,25 @@ def test_calibration_verdict_uses_the_cells_sampling_error():
     assert "| yes (±0.1) |" in markdown(table, 1000)
     table["heuristic"]["win_rate"][1] = 0.52
     assert "| NO (±0.1) |" in markdown(table, 1000)
+
+
+def test_a_progress_callback_reports_each_measurement_and_changes_no_number():
+    """``progress`` is called from the host after each measurement (the start's, then each edit's)
+    with the episodes done so far: those that stopped within the edits measured (an episode of e
+    edits stops after measurement e + 1), all of them after the last. The numbers are those of the
+    same call without it. Non-strict episodes, some stopping early (the loose run of the strict test
+    above, whose compiled generation the plain call shares)."""
+    game = pcg.base_game().replace(config=raidjax.EnvConfig(max_decisions=60, n_substeps=1))
+    loose = pcg.make_pcg_params(target=0.0, n_games=2, max_edits=3, strict_length=False).replace(game=game)
+    key = jax.random.PRNGKey(0)
+    plain = pm.generate(key, pcg.pcg_rd, loose, targets=(0.0,), episodes=12, eval_games=0)
+    seen = []
+    told = pm.generate(key, pcg.pcg_rd, loose, targets=(0.0,), episodes=12, eval_games=0,
+                       progress=lambda *a: seen.append(tuple(int(x) for x in a)))
+    for k in plain:
+        np.testing.assert_array_equal(told[k], plain[k], err_msg=k)
+    edits = plain["edits"]
+    assert (edits < 3).any() and len(seen) == int(edits.max()) + 1  # the loop ends once every episode is done
+    for m, (measured, most, done, n) in enumerate(seen, 1):
+        assert (measured, most, n) == (m, 4, 12)
+        assert done == (12 if m == most else int((edits <= m - 1).sum())), (m, done)

@@ -14,6 +14,7 @@ generator alone at one episode per target played too few arenas to)::
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Callable
 from functools import cache
 from typing import Any
@@ -23,11 +24,37 @@ import jax.numpy as jnp
 import numpy as np
 
 from raidjax import pcg, policies
+from raidjax.io import fmt_seconds
 from trainers import draws
 from trainers.config import PPOConfig
 from trainers.ppo_pcgrl import ActorCritic, env_params
 
 BASELINES = ("PCG-HR", "PCG-RD")
+
+# The progress line of the generation running now (``generate_episodes``' ``log``), if any.
+_LINES: list[Callable] = []
+
+
+def _progress(measured, most, done, n) -> None:
+    """``pcg.quality.generate``'s progress callback: one function for every call (a new one each
+    time would compile the generation anew), writing to the line of the call that runs it."""
+    if _LINES:
+        _LINES[-1](int(measured), int(most), int(done), int(n))
+
+
+def _progress_line(log: Callable[[str], None]) -> Callable:
+    """``log`` one line per measurement of a generation: how far it is, and an ETA from the
+    measurements' pace (at most: episodes that are all done end the loop early)."""
+    t0, first = time.perf_counter(), {}
+
+    def line(measured: int, most: int, done: int, n: int) -> None:
+        now = time.perf_counter()
+        # the pace is taken after the first measurement, which holds the compile
+        m0, t_first = first.setdefault("measurement", (measured, now))
+        pace = (now - t_first) / (measured - m0) if measured > m0 else None
+        eta = f", ETA at most {fmt_seconds(pace * (most - measured))}" if pace is not None else ""
+        log(f"measurement {measured}/{most}: {done} of {n} episodes done, {fmt_seconds(now - t0)} so far{eta}")
+    return line
 
 
 def target_groups(config: PPOConfig, seeds: int) -> tuple[np.ndarray, list[tuple[float | None, int]]]:
@@ -114,7 +141,8 @@ def _shared_env(configs: list[PPOConfig], strict_length, max_edits) -> PPOConfig
 def generate_episodes(key: jax.Array, generators: dict[str, PPOGenerator], *, gen_games: int, greedy: bool,
                       episodes: int, eval_games: int, baselines: bool = True, strict_length: bool | None = None,
                       max_edits: int | None = None, tester: Callable = policies.heuristic,
-                      tester_weights: Any = None) -> dict[str, dict[str, np.ndarray]]:
+                      tester_weights: Any = None,
+                      log: Callable[[str], None] | None = None) -> dict[str, dict[str, np.ndarray]]:
     """Generate with trained PPO runs (every group of each), PCG-HR and PCG-RD in the training
     environment, every episode of every method side by side in one call.
 
@@ -130,6 +158,8 @@ def generate_episodes(key: jax.Array, generators: dict[str, PPOGenerator], *, ge
         strict_length, max_edits: override the training environment's (``None``: keep).
         tester, tester_weights: the playtesting team of every measurement (``env_params``; PT-HR
             by default).
+        log: ``None``, or where a progress line goes after each measurement of the episodes (the
+            same numbers are generated with or without it).
 
     Returns:
         ``{method: pcg.quality.generate output}`` (numpy arrays; a PPO run's groups pooled), methods
@@ -159,10 +189,17 @@ def generate_episodes(key: jax.Array, generators: dict[str, PPOGenerator], *, ge
             group += [0] * episodes
     policy = method_policy(tuple((g.config.widths, bool(g.config.observe_target)) for g in runs), greedy,
                            runs[0].config.space.size)
-    out = pcg.quality.generate(key, policy, p, policy_params=tuple(g.weights for g in runs),
-                               targets=np.asarray(targets, np.float32), episodes=1, eval_games=eval_games,
-                               episode_params={"method": jnp.asarray(method, jnp.int32),
-                                               "group": jnp.asarray(group, jnp.int32)})
+    if log is not None:
+        _LINES.append(_progress_line(log))
+    try:
+        out = pcg.quality.generate(key, policy, p, policy_params=tuple(g.weights for g in runs),
+                                   targets=np.asarray(targets, np.float32), episodes=1, eval_games=eval_games,
+                                   episode_params={"method": jnp.asarray(method, jnp.int32),
+                                                   "group": jnp.asarray(group, jnp.int32)},
+                                   progress=None if log is None else _progress)
+    finally:
+        if log is not None:
+            _LINES.pop()
     names = list(generators) + (list(BASELINES) if baselines else [])
     method = np.asarray(method)
     return {name: {k: v[method == m] for k, v in out.items()} for m, name in enumerate(names)}

@@ -298,7 +298,8 @@ def run_ppo_pcgrl(config: PPOConfig, out: str | Path, *, preset: str = "cpu", se
             ppo = PPOGenerator(config, done.state["params"], labels)
             gens = generate_episodes(jax.random.key(seed + 1), {"PPO": ppo},
                                      gen_games=ev["eval_gen_games"], greedy=ev["greedy"], episodes=ev["eval_episodes"],
-                                     eval_games=ev["eval_games"], baselines=not ev["no_baselines"], **team)
+                                     eval_games=ev["eval_games"], baselines=not ev["no_baselines"], **team,
+                                     log=lambda s: _say(f"evaluation: {s}"))
             summ = pcg.quality.summarize(gens)
             atomic_write(rf.out / "eval.json", finite_json(summ, indent=1))
             for name, s in summ.items():

@@ -14,6 +14,7 @@ notebook's ``groupby(...).sample(n=300, random_state=1)``.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from functools import partial
 
 import jax
@@ -77,9 +78,9 @@ PROTOCOLS = {
 }
 
 
-@partial(jax.jit, static_argnames=("policy", "episodes", "eval_games"))
+@partial(jax.jit, static_argnames=("policy", "episodes", "eval_games", "progress"))
 def _generate(key, policy, policy_params, params: env.PCGParams, targets, episodes: int, eval_games: int,
-              episode_params=None):
+              episode_params=None, progress=None):
     # Every generation measurement, the start's included, is played by the loop's one playtest, so
     # the program holds the game once (twice with the re-measurement) and compiles in half the
     # time. Iteration 0 measures the start skills with reset's keys (``env.unmeasured_reset``);
@@ -108,7 +109,10 @@ def _generate(key, policy, policy_params, params: env.PCGParams, targets, episod
         state2 = jax.tree.map(lambda a, b: jnp.where(first, a, b), state.replace(win_rate=w), stepped)
         obs2 = jax.vmap(lambda s: env.observe_pcg(s, params))(state2)
         keep = lambda old, new: jnp.where(state.done.reshape((-1,) + (1,) * (new.ndim - 1)), old, new)
-        return i + 1, keep(obs, obs2), jax.tree.map(keep, state, state2)
+        state2 = jax.tree.map(keep, state, state2)
+        if progress is not None:  # from the host, after each measurement: how far the loop has come
+            jax.debug.callback(progress, i + 1, params.max_edits + 1, jnp.sum(state2.done), n)
+        return i + 1, keep(obs, obs2), state2
 
     def cond(carry):
         i, _, state = carry
@@ -124,7 +128,8 @@ def _generate(key, policy, policy_params, params: env.PCGParams, targets, episod
 
 
 def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=None, targets=TARGETS,
-             episodes: int = 10, eval_games: int = 300, episode_params=None) -> dict[str, np.ndarray]:
+             episodes: int = 10, eval_games: int = 300, episode_params=None,
+             progress: Callable[[int, int, int, int], None] | None = None) -> dict[str, np.ndarray]:
     """Run a generator for ``episodes`` episodes per target, all episodes side by side: every
     measurement of the ``n = T * E`` episodes is one playtest of ``n * params.n_games`` games.
 
@@ -142,6 +147,11 @@ def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=Non
             episodes ordered target by target): which generator and network each episode runs.
         eval_games: games re-measuring each final skill (300); 0 keeps the generator's own last
             measurement (``params.n_games`` games), so ``win_rate == gen_win_rate``.
+        progress: ``None``, or a hashable ``progress(measured, most, done, n)`` called from the host
+            after each measurement of the episodes: ``measured`` of at most ``most`` measurements
+            (the start's and ``params.max_edits`` edits'; the loop stops early once every episode
+            is done), ``done`` of the ``n`` episodes finished. A long generation's progress line;
+            the numbers generated are the same with or without it.
 
     Returns:
         numpy dict over ``n = T * E`` episodes (``K = params.space.size``): ``target`` ``float32[n]``,
@@ -151,7 +161,7 @@ def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=Non
         ``float32[n, K]`` (its style goal; the start skill unless ``params.goal_axis``).
     """
     out = _generate(key, policy, policy_params, params, jnp.asarray(targets, jnp.float32), episodes, eval_games,
-                    episode_params)
+                    episode_params, progress)
     return {k: np.asarray(v) for k, v in jax.device_get(out).items()}
 
 

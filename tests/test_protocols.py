@@ -233,10 +233,10 @@ def test_strict_episodes_keep_the_last_measurement():
     assert (g["edits"] == 3).all()
     np.testing.assert_array_equal(g["win_rate"], g["gen_win_rate"])
     assert np.allclose(g["win_rate"] * 2, np.round(g["win_rate"] * 2))
-    compiled = pm._generate._cache_size()
+    compiled = pm._measure._cache_size()
     loose = pm.generate(key, pcg.pcg_rd, strict.replace(strict_length=np.False_), targets=(0.0,), episodes=12,
                         eval_games=0)
-    assert pm._generate._cache_size() == compiled
+    assert pm._measure._cache_size() == compiled
     assert (loose["edits"] < 3).any() and (loose["edits"][loose["edits"] < 3] >= 1).all()
     assert loose["reached"][loose["edits"] < 3].all()
 
@@ -244,9 +244,9 @@ def test_strict_episodes_keep_the_last_measurement():
 def test_generation_episodes_are_reset_then_step_key_for_key():
     """``generate`` plays every measurement, the start's included, in its loop's one playtest; its
     episodes are still ``env.reset`` followed by ``env.step``, key for key (the key schedule of
-    ``quality._generate``: reset keys from the first third of the key, edit i's policy and playtest
-    keys from ``fold_in(second, i)``). Strict episodes: every one makes all 3 edits. Shares the
-    compiled generation of the strict test above (same arguments)."""
+    ``quality._start`` and ``quality._measure``: reset keys from the first third of the key, edit
+    i's policy and playtest keys from ``fold_in(second, i)``). Strict episodes: every one makes all
+    3 edits. Shares the compiled generation of the strict test above (same arguments)."""
     game = pcg.base_game().replace(config=raidjax.EnvConfig(max_decisions=60, n_substeps=1))
     params = pcg.make_pcg_params(target=0.0, n_games=2, max_edits=3, strict_length=True).replace(game=game)
     key, n = jax.random.PRNGKey(0), 12
@@ -290,18 +290,19 @@ def test_calibration_verdict_uses_the_cells_sampling_error():
 
 
 def test_a_progress_callback_reports_each_measurement_and_changes_no_number():
-    """``progress`` is called from the host after each measurement (the start's, then each edit's)
-    with the episodes done so far: those that stopped within the edits measured (an episode of e
-    edits stops after measurement e + 1), all of them after the last. The numbers are those of the
-    same call without it. Non-strict episodes, some stopping early (the loose run of the strict test
-    above, whose compiled generation the plain call shares)."""
+    """``progress`` is called after each measurement (the start's, then each edit's) with the
+    episodes done so far: those that stopped within the edits measured (an episode of e edits stops
+    after measurement e + 1), all of them after the last. The numbers are those of the same call
+    without it, from the same compiled programs. Non-strict episodes, some stopping early (the loose
+    run of the strict test above, whose compiled generation both calls share)."""
     game = pcg.base_game().replace(config=raidjax.EnvConfig(max_decisions=60, n_substeps=1))
     loose = pcg.make_pcg_params(target=0.0, n_games=2, max_edits=3, strict_length=False).replace(game=game)
     key = jax.random.PRNGKey(0)
     plain = pm.generate(key, pcg.pcg_rd, loose, targets=(0.0,), episodes=12, eval_games=0)
-    seen = []
+    seen, compiled = [], pm._measure._cache_size()
     told = pm.generate(key, pcg.pcg_rd, loose, targets=(0.0,), episodes=12, eval_games=0,
-                       progress=lambda *a: seen.append(tuple(int(x) for x in a)))
+                       progress=lambda *a: seen.append(a))
+    assert pm._measure._cache_size() == compiled
     for k in plain:
         np.testing.assert_array_equal(told[k], plain[k], err_msg=k)
     edits = plain["edits"]

@@ -31,20 +31,11 @@ from trainers.ppo_pcgrl import ActorCritic, env_params
 
 BASELINES = ("PCG-HR", "PCG-RD")
 
-# The progress line of the generation running now (``generate_episodes``' ``log``), if any.
-_LINES: list[Callable] = []
-
-
-def _progress(measured, most, done, n) -> None:
-    """``pcg.quality.generate``'s progress callback: one function for every call (a new one each
-    time would compile the generation anew), writing to the line of the call that runs it."""
-    if _LINES:
-        _LINES[-1](int(measured), int(most), int(done), int(n))
-
-
-def _progress_line(log: Callable[[str], None]) -> Callable:
-    """``log`` one line per measurement of a generation: how far it is, and an ETA from the
-    measurements' pace (at most: episodes that are all done end the loop early)."""
+def _progress_line(log: Callable[[str], None], eval_games: int, gen_games: int) -> Callable:
+    """``log`` one line per measurement of a generation (``pcg.quality.generate``'s ``progress``):
+    how far it is, and an ETA from the measurements' pace, the re-measurement of ``eval_games``
+    games counted as ``eval_games / gen_games`` measurements (at most: the loop ends early once every
+    episode is done)."""
     t0, first = time.perf_counter(), {}
 
     def line(measured: int, most: int, done: int, n: int) -> None:
@@ -52,7 +43,8 @@ def _progress_line(log: Callable[[str], None]) -> Callable:
         # the pace is taken after the first measurement, which holds the compile
         m0, t_first = first.setdefault("measurement", (measured, now))
         pace = (now - t_first) / (measured - m0) if measured > m0 else None
-        eta = f", ETA at most {fmt_seconds(pace * (most - measured))}" if pace is not None else ""
+        left = most - measured + eval_games / gen_games
+        eta = f", ETA at most {fmt_seconds(pace * left)}" if pace is not None else ""
         log(f"measurement {measured}/{most}: {done} of {n} episodes done, {fmt_seconds(now - t0)} so far{eta}")
     return line
 
@@ -189,17 +181,11 @@ def generate_episodes(key: jax.Array, generators: dict[str, PPOGenerator], *, ge
             group += [0] * episodes
     policy = method_policy(tuple((g.config.widths, bool(g.config.observe_target)) for g in runs), greedy,
                            runs[0].config.space.size)
-    if log is not None:
-        _LINES.append(_progress_line(log))
-    try:
-        out = pcg.quality.generate(key, policy, p, policy_params=tuple(g.weights for g in runs),
-                                   targets=np.asarray(targets, np.float32), episodes=1, eval_games=eval_games,
-                                   episode_params={"method": jnp.asarray(method, jnp.int32),
-                                                   "group": jnp.asarray(group, jnp.int32)},
-                                   progress=None if log is None else _progress)
-    finally:
-        if log is not None:
-            _LINES.pop()
+    out = pcg.quality.generate(key, policy, p, policy_params=tuple(g.weights for g in runs),
+                               targets=np.asarray(targets, np.float32), episodes=1, eval_games=eval_games,
+                               episode_params={"method": jnp.asarray(method, jnp.int32),
+                                               "group": jnp.asarray(group, jnp.int32)},
+                               progress=None if log is None else _progress_line(log, eval_games, p.n_games))
     names = list(generators) + (list(BASELINES) if baselines else [])
     method = np.asarray(method)
     return {name: {k: v[method == m] for k, v in out.items()} for m, name in enumerate(names)}

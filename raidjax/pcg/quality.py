@@ -78,53 +78,57 @@ PROTOCOLS = {
 }
 
 
-@partial(jax.jit, static_argnames=("policy", "episodes", "eval_games", "progress"))
-def _generate(key, policy, policy_params, params: env.PCGParams, targets, episodes: int, eval_games: int,
-              episode_params=None, progress=None):
-    # Every generation measurement, the start's included, is played by the loop's one playtest, so
-    # the program holds the game once (twice with the re-measurement) and compiles in half the
-    # time. Iteration 0 measures the start skills with reset's keys (``env.unmeasured_reset``);
-    # iteration i > 0 is ``env.step`` with the keys of edit i - 1: the episodes are those of
-    # ``env.reset`` followed by ``env.step``.
+# A generation is three compiled programs driven from the host: the episodes' start, one measurement
+# of every episode (the loop's body: the start's measurement, then each edit's; it holds the game
+# once, called until every episode is done or has made its edits) and the re-measurement. The host
+# loop says how far it has come between measurements (``generate``'s ``progress``) and keeps every
+# program free of host callbacks, which JAX's persistent compilation cache will not store.
+# Measurement 0 measures the start skills with reset's keys (``env.unmeasured_reset``); measurement
+# i > 0 is ``env.step`` with the keys of edit i - 1: the episodes are those of ``env.reset`` followed
+# by ``env.step``.
+
+
+@partial(jax.jit, static_argnames=("episodes",))
+def _start(key, params: env.PCGParams, targets, episodes: int):
+    """Every episode's target ``t`` (``float32[n]``), the keys of its start measurement, of the
+    loop and of the re-measurement, and its unmeasured start (observation and state)."""
     t = jnp.repeat(targets, episodes)
     n = t.shape[0]
     k_reset, k_loop, k_eval = jax.random.split(key, 3)
     k_start, state = jax.vmap(lambda k, tt: env.unmeasured_reset(k, params, tt))(jax.random.split(k_reset, n), t)
     obs = jax.vmap(lambda s: env.observe_pcg(s, params))(state)
+    return t, (k_start, k_loop, k_eval), obs, state
 
-    def body(carry):
-        i, obs, state = carry
-        first = i == 0
-        ks = jax.random.split(jax.random.fold_in(k_loop, i - 1), 2 * n)  # raw or typed keys
-        ks = (ks[:n], ks[n:])
-        if episode_params is None:
-            act = jax.vmap(lambda k, o, s: policy(policy_params, k, o, s, params))(ks[0], obs, state)
-        else:
-            act = jax.vmap(lambda k, o, s, e: policy((policy_params, e), k, o, s, params))(ks[0], obs, state,
-                                                                                        episode_params)
-        edited = jax.vmap(lambda s, a: env.apply_action(s.skill, a, params.space))(state, act)
-        skill = jnp.where(first, state.skill, edited)
-        w = jax.vmap(lambda k, sk: env.measure(k, params, sk))(jnp.where(first, k_start, ks[1]), skill)
-        stepped, _ = jax.vmap(lambda s, sk, ww: env.advance(s, sk, ww, params))(state, skill, w)
-        state2 = jax.tree.map(lambda a, b: jnp.where(first, a, b), state.replace(win_rate=w), stepped)
-        obs2 = jax.vmap(lambda s: env.observe_pcg(s, params))(state2)
-        keep = lambda old, new: jnp.where(state.done.reshape((-1,) + (1,) * (new.ndim - 1)), old, new)
-        state2 = jax.tree.map(keep, state, state2)
-        if progress is not None:  # from the host, after each measurement: how far the loop has come
-            jax.debug.callback(progress, i + 1, params.max_edits + 1, jnp.sum(state2.done), n)
-        return i + 1, keep(obs, obs2), state2
 
-    def cond(carry):
-        i, _, state = carry
-        return (i <= params.max_edits) & ~jnp.all(state.done)
+@partial(jax.jit, static_argnames=("policy",))
+def _measure(i, obs, state, k_start, k_loop, policy, policy_params, params: env.PCGParams, episode_params):
+    """Measurement ``i`` (``int32[]``) of every episode not yet done; returns the new observation and
+    state and whether another measurement follows."""
+    n = k_start.shape[0]
+    first = i == 0
+    ks = jax.random.split(jax.random.fold_in(k_loop, i - 1), 2 * n)  # raw or typed keys
+    ks = (ks[:n], ks[n:])
+    if episode_params is None:
+        act = jax.vmap(lambda k, o, s: policy(policy_params, k, o, s, params))(ks[0], obs, state)
+    else:
+        act = jax.vmap(lambda k, o, s, e: policy((policy_params, e), k, o, s, params))(ks[0], obs, state,
+                                                                                    episode_params)
+    edited = jax.vmap(lambda s, a: env.apply_action(s.skill, a, params.space))(state, act)
+    skill = jnp.where(first, state.skill, edited)
+    w = jax.vmap(lambda k, sk: env.measure(k, params, sk))(jnp.where(first, k_start, ks[1]), skill)
+    stepped, _ = jax.vmap(lambda s, sk, ww: env.advance(s, sk, ww, params))(state, skill, w)
+    state2 = jax.tree.map(lambda a, b: jnp.where(first, a, b), state.replace(win_rate=w), stepped)
+    obs2 = jax.vmap(lambda s: env.observe_pcg(s, params))(state2)
+    keep = lambda old, new: jnp.where(state.done.reshape((-1,) + (1,) * (new.ndim - 1)), old, new)
+    state2 = jax.tree.map(keep, state, state2)
+    return keep(obs, obs2), state2, (i + 1 <= params.max_edits) & ~jnp.all(state2.done)
 
-    _, _, state = jax.lax.while_loop(cond, body, (jnp.int32(0), obs, state))
-    if eval_games:
-        final = jax.vmap(lambda k, s: env.measure(k, params, s, eval_games))(jax.random.split(k_eval, n), state.skill)
-    else:  # the generator's own last measurement is the result (no re-measurement)
-        final = state.win_rate
-    return {"target": t, "skill": state.skill, "win_rate": final, "gen_win_rate": state.win_rate,
-            "edits": state.edits, "reached": state.reached, "goal": state.goal}
+
+@partial(jax.jit, static_argnames=("eval_games",))
+def _remeasure(k_eval, state, params: env.PCGParams, eval_games: int):
+    """Each episode's final skill played ``eval_games`` times: ``float32[n]``."""
+    keys = jax.random.split(k_eval, state.skill.shape[0])
+    return jax.vmap(lambda k, s: env.measure(k, params, s, eval_games))(keys, state.skill)
 
 
 def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=None, targets=TARGETS,
@@ -147,11 +151,11 @@ def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=Non
             episodes ordered target by target): which generator and network each episode runs.
         eval_games: games re-measuring each final skill (300); 0 keeps the generator's own last
             measurement (``params.n_games`` games), so ``win_rate == gen_win_rate``.
-        progress: ``None``, or a hashable ``progress(measured, most, done, n)`` called from the host
-            after each measurement of the episodes: ``measured`` of at most ``most`` measurements
-            (the start's and ``params.max_edits`` edits'; the loop stops early once every episode
-            is done), ``done`` of the ``n`` episodes finished. A long generation's progress line;
-            the numbers generated are the same with or without it.
+        progress: ``None``, or ``progress(measured, most, done, n)``, called after each
+            measurement of the episodes: ``measured`` of at most ``most`` measurements (the
+            start's and ``params.max_edits`` edits'; the loop stops early once every episode is
+            done), ``done`` of the ``n`` episodes finished; the re-measurement follows the last.
+            A long generation's progress line; the numbers are the same with or without it.
 
     Returns:
         numpy dict over ``n = T * E`` episodes (``K = params.space.size``): ``target`` ``float32[n]``,
@@ -160,8 +164,19 @@ def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=Non
         ``edits`` ``int32[n]``, ``reached`` ``bool[n]`` (the band was reached) and ``goal``
         ``float32[n, K]`` (its style goal; the start skill unless ``params.goal_axis``).
     """
-    out = _generate(key, policy, policy_params, params, jnp.asarray(targets, jnp.float32), episodes, eval_games,
-                    episode_params, progress)
+    t, (k_start, k_loop, k_eval), obs, state = _start(key, params, jnp.asarray(targets, jnp.float32), episodes)
+    measured, go = 0, True  # every episode measures its start (max_edits >= 0)
+    while go:
+        obs, state, go = _measure(jnp.int32(measured), obs, state, k_start, k_loop, policy, policy_params, params,
+                                  episode_params)
+        measured += 1
+        if progress is not None:
+            progress(measured, int(params.max_edits) + 1, int(jnp.sum(state.done)), int(t.shape[0]))
+        go = bool(go)
+    # without a re-measurement the generator's own last measurement is the result
+    final = _remeasure(k_eval, state, params, eval_games) if eval_games else state.win_rate
+    out = {"target": t, "skill": state.skill, "win_rate": final, "gen_win_rate": state.win_rate,
+           "edits": state.edits, "reached": state.reached, "goal": state.goal}
     return {k: np.asarray(v) for k, v in jax.device_get(out).items()}
 
 

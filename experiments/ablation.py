@@ -227,24 +227,24 @@ def main(argv=None) -> str:
     teams, inputs = run_inputs(args.ranges, args.seeds, args.seed, args.only_seeds)
     for name in args.variants:
         cfg = variant_config(name, args.total_steps)
-        rf = RunFolder(args.out / name, {"ablation": name, "config": cfg.to_dict(), "ranges": args.ranges,
+        with RunFolder(args.out / name, {"ablation": name, "config": cfg.to_dict(), "ranges": args.ranges,
                                          "seeds": args.seeds, "seed": args.seed, "games": args.games,
                                          # only when given: folders started before the flag still resume
                                          **({"only_seeds": args.only_seeds} if args.only_seeds else {})},
-                       resume=args.resume and (args.out / name / "config.json").exists())
-        timing = rf.stage("train", lambda cfg=cfg, rf=rf: train_variant(rf, cfg, inputs, len(teams)))
+                       resume=args.resume and (args.out / name / "config.json").exists()) as rf:
+            timing = rf.stage("train", lambda cfg=cfg, rf=rf: train_variant(rf, cfg, inputs, len(teams)))
 
-        def play(cfg=cfg, rf=rf):
-            actor, weights = final_actors(rf, cfg, inputs)
-            rows = play_switches(actor, weights, teams, cfg.senses, cfg.deterministic_eval, args.games, log=rf.log)
-            stamp = raidjax.io.machine()
-            atomic_write(rf.path("play.jsonl"), "".join(json.dumps({**r, "games": args.games, "machine": stamp}) + "\n"
-                                                        for r in rows))
-            return {"rows": len(rows)}
+            def play(cfg=cfg, rf=rf):
+                actor, weights = final_actors(rf, cfg, inputs)
+                rows = play_switches(actor, weights, teams, cfg.senses, cfg.deterministic_eval, args.games, log=rf.log)
+                stamp = raidjax.io.machine()
+                atomic_write(rf.path("play.jsonl"),
+                             "".join(json.dumps({**r, "games": args.games, "machine": stamp}) + "\n" for r in rows))
+                return {"rows": len(rows)}
 
-        rf.stage("play", play)
-        if not (rf.out / "summary.json").exists():
-            rf.finish({"ablation": name, "train": timing, "switches": list(SWITCHES)})
+            rf.stage("play", play)
+            if not (rf.out / "summary.json").exists():
+                rf.finish({"ablation": name, "train": timing, "switches": list(SWITCHES)})
     text = table(args.out)
     atomic_write(args.out / "ablation.md", text + "\n")
     print(text)

@@ -283,22 +283,22 @@ def main(argv=None) -> dict:
     scale = SCALES[args.scale]
     team = Team(tuple(args.players), tuple(args.parameters))
     tester_config(scale, team)  # a bad team or parameter fails here, before anything is written
-    rf = RunFolder(args.out, {"experiment": "balance", "scale": args.scale, "seed": args.seed,
+    with RunFolder(args.out, {"experiment": "balance", "scale": args.scale, "seed": args.seed,
                               "players": list(team.players), "parameters": list(team.parameters),
-                              "budgets": dataclasses.asdict(scale)}, resume=args.resume)
-    if rf.finished:
-        return rf.already_finished()
-    from experiments import balance_report  # matplotlib only for the report
+                              "budgets": dataclasses.asdict(scale)}, resume=args.resume) as rf:
+        if rf.finished:
+            return rf.already_finished()
+        from experiments import balance_report  # matplotlib only for the report
 
-    tester = rf.stage("tester", lambda: stage_tester(rf, scale, team, args.seed))
-    check = rf.stage("tester_check", lambda: stage_tester_check(rf, scale, team, args.seed))
-    for name in GENERATORS:
-        rf.stage(f"generator_{name}",
-                 lambda name=name: train_generator(rf, scale, team, name, args.seed))
-    rf.stage("generate", lambda: stage_generate(rf, scale, team, args.seed))
-    report = rf.stage("report", lambda: balance_report.report(rf))
-    rf.log(f"done in {fmt_seconds(sum(rf.stage_seconds().values()))}")
-    return rf.finish({"scale": args.scale, "tester_decisions": tester["env_steps"], **check, **report})
+        tester = rf.stage("tester", lambda: stage_tester(rf, scale, team, args.seed))
+        check = rf.stage("tester_check", lambda: stage_tester_check(rf, scale, team, args.seed))
+        for name in GENERATORS:
+            rf.stage(f"generator_{name}",
+                     lambda name=name: train_generator(rf, scale, team, name, args.seed))
+        rf.stage("generate", lambda: stage_generate(rf, scale, team, args.seed))
+        report = rf.stage("report", lambda: balance_report.report(rf))
+        rf.log(f"done in {fmt_seconds(sum(rf.stage_seconds().values()))}")
+        return rf.finish({"scale": args.scale, "tester_decisions": tester["env_steps"], **check, **report})
 
 
 def cli(argv=None) -> None:

@@ -137,7 +137,8 @@ def main(argv=None) -> dict:
     if not (run / "generated.npz").is_file() or not (run / "config.json").is_file():
         raise ValueError(f"run: value {str(run)!r} holds no config.json and generated.npz; allowed: a balance run "
                          "folder past its generate stage")
-    summary = report(RunFolder(run, json.loads((run / "config.json").read_text()), resume=True))
+    with RunFolder(run, json.loads((run / "config.json").read_text()), resume=True) as rf:
+        summary = report(rf)
     print(json.dumps(summary))
     return summary
 

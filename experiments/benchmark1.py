@@ -393,23 +393,23 @@ def main(argv=None) -> dict:
     args = ap.parse_args(argv)
     scale = SCALES[args.scale]
     runs = runs_of(scale, args.protocol)
-    rf = RunFolder(args.out, {"benchmark": 1, "scale": args.scale, "seed": args.seed, "protocol": args.protocol,
+    with RunFolder(args.out, {"benchmark": 1, "scale": args.scale, "seed": args.seed, "protocol": args.protocol,
                               "budgets": dataclasses.asdict(scale),
                               "trainer": config_of(scale, args.protocol).to_dict(), "runs": runs},
-                   resume=args.resume)
-    if rf.finished:
-        return rf.already_finished()
-    from experiments import b1_report
+                   resume=args.resume) as rf:
+        if rf.finished:
+            return rf.already_finished()
+        from experiments import b1_report
 
-    try:
-        timing = rf.stage("train", lambda: stage_train(rf, scale, runs, args.seed, args.max_chunks, args.protocol))
-    except Interrupted as e:
-        rf.log(str(e))
-        return {"interrupted": True}
-    ev = rf.stage("evaluate", lambda: stage_evaluate(rf, scale, runs, args.seed, args.protocol))
-    rf.stage("heatmaps", lambda: stage_heatmaps(rf, scale, runs, args.seed, args.protocol))
-    summary = rf.stage("report", lambda: b1_report.report(rf, ev["cells"], timing))
-    return rf.finish({"benchmark": 1, "scale": args.scale, "protocol": args.protocol, **summary, "train": timing})
+        try:
+            timing = rf.stage("train", lambda: stage_train(rf, scale, runs, args.seed, args.max_chunks, args.protocol))
+        except Interrupted as e:
+            rf.log(str(e))
+            return {"interrupted": True}
+        ev = rf.stage("evaluate", lambda: stage_evaluate(rf, scale, runs, args.seed, args.protocol))
+        rf.stage("heatmaps", lambda: stage_heatmaps(rf, scale, runs, args.seed, args.protocol))
+        summary = rf.stage("report", lambda: b1_report.report(rf, ev["cells"], timing))
+        return rf.finish({"benchmark": 1, "scale": args.scale, "protocol": args.protocol, **summary, "train": timing})
 
 
 def cli(argv=None) -> None:

@@ -404,38 +404,40 @@ def main(argv=None) -> dict:
               "ppo_config": dataclasses.asdict(ppo_config(scale)), "targets": list(pm.TARGETS),
               **({"paper_ppo_config": dataclasses.asdict(paper_ppo_config(scale))} if scale.paper_ppo is not None
                  else {})}
-    run = RunFolder(a.out, config, resume=a.resume, ignore=REPORT_SETTINGS)
-    settings = {k: config[k] for k in REPORT_SETTINGS}
-    made_with = (run.result("report") or {}).get("settings", {})
-    if run.done("report") and made_with != settings:  # checked on every resume: a kill cannot skip it
-        run.redo("report", ", ".join(f"{k} {made_with.get(k, 'unrecorded')} -> {v}" for k, v in settings.items()
-                                     if made_with.get(k) != v))
-    if run.finished:
-        return run.already_finished()
-    if "started" not in run.records():  # the run's first start: where its wall-clock span begins
-        run.record("started", utc_now(), 0.0)
-    train_games, gen_games = planned_games(scale, pr)
-    run.log(f"plan: scale {a.scale}, at most {train_games:,} PT-HR games in training and {gen_games:,} in "
-            f"generation; a whole {a.scale} run took {MEASURED_WALL.get(a.scale, 'not yet measured')} "
-            "on a 2-core CPU (docs/results/benchmark2.md); the training and generation lines give the ETA as they go")
-    tr = run.stage("train", lambda: stage_train(run, scale, a.seed))
-    tr_paper = (run.stage("train_paper_ppo", lambda: stage_train(run, scale, a.seed, paper=True))
-                if scale.paper_ppo is not None else None)
-    ge = run.stage("generate", lambda: stage_generate(run, scale, a.seed, a.protocol))
-    rep = run.stage("report", lambda: {**b2_report.report(run, load_generated(run.out / "generated.npz"), seed=a.seed,
-                                                             tsne_per_target=scale.tsne_per_target, protocol=pr,
-                                                             n_boot=scale.bootstrap, min_kept=scale.min_kept),
-                                       "settings": settings})
-    summary = {"benchmark": 2, "scale": a.scale, "seed": a.seed, "protocol": a.protocol,
-               **{k: rep.get(k) for k in ("mean_error", "pc1_sd", "pc1_own_sd", "yield", "edits", "n_controllability",
-                                          "ci95")},
-               "paper": b2_report.paper_summary(),
-               "train_steps": tr["steps"], "train_groups": tr["groups"], "episodes": ge["episodes"],
-               "train_seconds": tr["seconds"], "generate_seconds": ge["seconds"],
-               **({"paper_ppo_train_steps": tr_paper["steps"], "paper_ppo_train_groups": tr_paper["groups"],
-                   "paper_ppo_train_seconds": tr_paper["seconds"]} if tr_paper else {}),
-               "wall_seconds": sum(run.stage_seconds().values())}
-    return run.finish({**summary, **compute_time(run, tr, tr_paper)})
+    with RunFolder(a.out, config, resume=a.resume, ignore=REPORT_SETTINGS) as run:
+        settings = {k: config[k] for k in REPORT_SETTINGS}
+        made_with = (run.result("report") or {}).get("settings", {})
+        if run.done("report") and made_with != settings:  # checked on every resume: a kill cannot skip it
+            run.redo("report", ", ".join(f"{k} {made_with.get(k, 'unrecorded')} -> {v}" for k, v in settings.items()
+                                         if made_with.get(k) != v))
+        if run.finished:
+            return run.already_finished()
+        if "started" not in run.records():  # the run's first start: where its wall-clock span begins
+            run.record("started", utc_now(), 0.0)
+        train_games, gen_games = planned_games(scale, pr)
+        run.log(f"plan: scale {a.scale}, at most {train_games:,} PT-HR games in training and {gen_games:,} in "
+                f"generation; a whole {a.scale} run took {MEASURED_WALL.get(a.scale, 'not yet measured')} "
+                "on a 2-core CPU (docs/results/benchmark2.md); the training and generation lines give the ETA "
+                "as they go")
+        tr = run.stage("train", lambda: stage_train(run, scale, a.seed))
+        tr_paper = (run.stage("train_paper_ppo", lambda: stage_train(run, scale, a.seed, paper=True))
+                    if scale.paper_ppo is not None else None)
+        ge = run.stage("generate", lambda: stage_generate(run, scale, a.seed, a.protocol))
+        rep = run.stage("report", lambda: {**b2_report.report(run, load_generated(run.out / "generated.npz"),
+                                                                 seed=a.seed, tsne_per_target=scale.tsne_per_target,
+                                                                 protocol=pr, n_boot=scale.bootstrap,
+                                                                 min_kept=scale.min_kept),
+                                           "settings": settings})
+        summary = {"benchmark": 2, "scale": a.scale, "seed": a.seed, "protocol": a.protocol,
+                   **{k: rep.get(k) for k in ("mean_error", "pc1_sd", "pc1_own_sd", "yield", "edits",
+                                              "n_controllability", "ci95")},
+                   "paper": b2_report.paper_summary(),
+                   "train_steps": tr["steps"], "train_groups": tr["groups"], "episodes": ge["episodes"],
+                   "train_seconds": tr["seconds"], "generate_seconds": ge["seconds"],
+                   **({"paper_ppo_train_steps": tr_paper["steps"], "paper_ppo_train_groups": tr_paper["groups"],
+                       "paper_ppo_train_seconds": tr_paper["seconds"]} if tr_paper else {}),
+                   "wall_seconds": sum(run.stage_seconds().values())}
+        return run.finish({**summary, **compute_time(run, tr, tr_paper)})
 
 
 def cli(argv=None) -> None:

@@ -98,7 +98,7 @@ def test_a_folder_in_use_by_another_process_is_refused_until_that_process_ends(t
     child = other_process(out)
     assert child.said == "holding"
     files = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
-    with pytest.raises(RunFolderError, match=rf"{out} is in use by process {child.pid} on .*: wait for that run"):
+    with pytest.raises(RunFolderError, match=rf"{out} is in use by process {child.pid} on .*: wait for it to end"):
         RunFolder(out, {"steps": 8}, resume=True)
     with pytest.raises(RunFolderError, match="already holds a run"):  # the settings' refusals come first
         RunFolder(out, {"steps": 8})
@@ -111,6 +111,25 @@ def test_a_folder_in_use_by_another_process_is_refused_until_that_process_ends(t
     child = other_process(out)  # the with block released it
     assert child.said == "holding"
     child.communicate("")
+
+
+def test_a_refusal_before_the_lock_makes_no_lock_file(tmp_path):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "config.json").write_text(json.dumps({"steps": 8}))  # a run saved before the lock existed
+    for kwargs in ({}, {"resume": True, "config": {"steps": 9}}):
+        with pytest.raises(RunFolderError):
+            RunFolder(out, **{"config": {"steps": 8}, **kwargs})
+    assert sorted(p.name for p in out.iterdir()) == ["config.json"]
+
+
+def test_a_renamed_folder_is_the_same_lock(tmp_path):
+    first = RunFolder(tmp_path / "run", {"steps": 8})
+    (tmp_path / "run").rename(tmp_path / "moved")
+    with RunFolder(tmp_path / "moved", {"steps": 8}, resume=True):  # this process holds it: not refused
+        pass
+    assert other_process(tmp_path / "moved").said.startswith("refused:")  # still held by ``first``
+    first.close()
 
 
 def test_this_process_may_open_its_own_folder_again_and_holds_it_until_the_last_close(tmp_path):

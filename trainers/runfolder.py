@@ -31,7 +31,8 @@ One process at a time: a job holds an advisory lock on ``DIR/.runfolder.lock`` (
 while it works in the folder, and a second process that opens the folder is refused, naming the
 process that holds it. The operating system releases the lock when that process ends, however it
 ends (a killed run leaves no stale lock). Within one process the folder may be opened again (a
-notebook resuming its own run).
+notebook resuming its own run). Where nothing can lock (no ``fcntl``, as on Windows, or a file
+system without locks) the run says so in its log and goes on unlocked.
 """
 
 from __future__ import annotations
@@ -92,20 +93,22 @@ except ImportError:  # pragma: no cover
     fcntl = None
 
 LOCK_NAME = ".runfolder.lock"
-# The locks this process holds: (lock file, its inode) -> [its open descriptor, RunFolder objects using
-# it]. A flock lock belongs to an open file, so a second open in this process would refuse the first;
-# the inode tells a lock file deleted with its folder (and made again) from the one held.
-_HELD: dict[tuple[str, int], list] = {}
+# The locks this process holds: the lock file's (device, inode) -> [its open descriptor, RunFolder
+# objects using it]. A flock lock belongs to an open file, so a second open in this process would
+# refuse the first; the file's identity, unlike its path, follows a renamed folder and tells a lock
+# file deleted with its folder (and made again) from the one held.
+_HELD: dict[tuple[int, int], list] = {}
 
 
-def _lock(folder: Path) -> tuple[str, int] | None:
+def _lock(folder: Path) -> tuple[int, int] | None:
     """Take (or, held by this process already, share) the lock of ``folder`` (which exists); return
     its key for ``_unlock``, or ``None`` where the file system cannot lock. Raises
     ``RunFolderError`` naming the holder when another process holds it."""
     if fcntl is None:
         return None
     fd = os.open(folder / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)  # not truncated: it names the holder
-    key = (str((folder / LOCK_NAME).resolve()), os.fstat(fd).st_ino)
+    stat = os.fstat(fd)
+    key = (stat.st_dev, stat.st_ino)
     if key in _HELD:
         os.close(fd)
         _HELD[key][1] += 1
@@ -115,18 +118,21 @@ def _lock(folder: Path) -> tuple[str, int] | None:
     except BlockingIOError:
         holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
         os.close(fd)
-        raise RunFolderError(f"{folder} is in use by {holder}: wait for that run to end (or stop it), "
-                             "then rerun with --resume") from None
+        raise RunFolderError(f"{folder} is in use by {holder}: wait for it to end (or stop it), then try "
+                             "again") from None
     except OSError:  # a file system without locks (some network mounts): the folder is used unlocked
         os.close(fd)
         return None
-    os.ftruncate(fd, 0)
-    os.write(fd, f"process {os.getpid()} on {socket.gethostname()} (since {utc_now()})".encode())
     _HELD[key] = [fd, 1]
+    try:  # who holds it, for another process's refusal; the lock holds without it
+        os.ftruncate(fd, 0)
+        os.write(fd, f"process {os.getpid()} on {socket.gethostname()} (since {utc_now()})".encode())
+    except OSError:
+        pass
     return key
 
 
-def _unlock(key: tuple[str, int] | None) -> None:
+def _unlock(key: tuple[int, int] | None) -> None:
     """Release one use of the lock ``_lock`` returned; the last use closes the file (unlocking it)."""
     if key is None or key not in _HELD:
         return
@@ -192,9 +198,13 @@ class RunFolder:
         self._check(cfg_path, config, resume, ignore)  # a refusal touches nothing
         self.out.mkdir(parents=True, exist_ok=True)
         # held until close() or until this object is collected; released also on a refusal below
-        self._release = weakref.finalize(self, _unlock, _lock(self.out))
+        key = _lock(self.out)
+        self._release = weakref.finalize(self, _unlock, key)
         try:  # again under the lock: another process may have started or changed the run meanwhile
             self._open(cfg_path, config, ignore, self._check(cfg_path, config, resume, ignore))
+            if key is None:
+                self.log(f"{self.out} cannot be locked here ({'no fcntl' if fcntl is None else 'its file system'}):"
+                         " nothing keeps a second process from writing to it at the same time")
         except BaseException:
             self.close()
             raise

@@ -31,6 +31,7 @@ from trainers.ppo_pcgrl import ActorCritic, env_params
 
 BASELINES = ("PCG-HR", "PCG-RD")
 
+
 def _progress_line(log: Callable[[str], None], eval_games: int, gen_games: int) -> Callable:
     """``log`` one line per measurement of a generation (``pcg.quality.generate``'s ``progress``):
     how far it is, and an ETA from the measurements' pace, the re-measurement of ``eval_games``

@@ -221,13 +221,13 @@ class RunFolder:
 
     def _check(self, cfg_path: Path, config: dict, resume: bool, ignore: tuple[str, ...]) -> dict | None:
         """The refusals of ``__init__`` (reading only); the saved settings of the run found, or ``None``."""
-        if cfg_path.exists() and not resume:
-            raise RunFolderError(f"{self.out} already holds a run: pass --resume to continue it, or choose a new --out")
         if not cfg_path.exists():
             if resume:
                 raise RunFolderError(f"--resume: {self.out} holds no run to resume (no config.json); "
                                      "drop --resume to start one")
             return None
+        if not resume:
+            raise RunFolderError(f"{self.out} already holds a run: pass --resume to continue it, or choose a new --out")
         try:
             old = json.loads(cfg_path.read_text())
         except json.JSONDecodeError as e:

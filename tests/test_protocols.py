@@ -310,3 +310,35 @@ def test_a_progress_callback_reports_each_measurement_and_changes_no_number():
     for m, (measured, most, done, n) in enumerate(seen, 1):
         assert (measured, most, n) == (m, 4, 12)
         assert done == (12 if m == most else int((edits <= m - 1).sum())), (m, done)
+
+
+def _rd_plus(offset, key, obs, state, params):
+    """PCG-RD's edit plus ``offset`` (``int32[]``): a policy with weights, for the test below."""
+    return pcg.pcg_rd(None, key, obs, state, params) + offset
+
+
+def test_weights_committed_to_a_device_compile_one_measurement_program():
+    """Weights restored from a checkpoint are committed to a device, which commits every output of
+    a call they enter; the start's outputs are not. ``generate`` places them as the measurements
+    return them, so every measurement runs one compiled program (without that, the second
+    measurement compiled the program again for its committed arguments). The numbers are PCG-RD's."""
+    game = pcg.base_game().replace(config=raidjax.EnvConfig(max_decisions=60, n_substeps=1))
+    loose = pcg.make_pcg_params(target=0.0, n_games=2, max_edits=3, strict_length=False).replace(game=game)
+    key = jax.random.PRNGKey(0)
+    offset = jax.device_put(jnp.int32(0), jax.devices()[0])
+    assert offset.committed
+    lowered = []
+
+    def listen(event, seconds, **kw):
+        if event.endswith("jaxpr_to_mlir_module_duration"):
+            lowered.append(kw.get("fun_name"))
+
+    jax.monitoring.register_event_duration_secs_listener(listen)
+    try:
+        got = pm.generate(key, _rd_plus, loose, policy_params=offset, targets=(0.0,), episodes=12, eval_games=0)
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listen)
+    assert got["edits"].max() >= 2 and lowered.count("jit(_measure)") == 1, lowered
+    plain = pm.generate(key, pcg.pcg_rd, loose, targets=(0.0,), episodes=12, eval_games=0)
+    for k in plain:
+        np.testing.assert_array_equal(got[k], plain[k], err_msg=k)

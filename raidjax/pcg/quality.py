@@ -124,6 +124,20 @@ def _measure(i, obs, state, k_start, k_loop, policy, policy_params, params: env.
     return keep(obs, obs2), state2, (i + 1 <= params.max_edits) & ~jnp.all(state2.done)
 
 
+def _placed_like(carried, inputs):
+    """``carried`` committed to the one device an array of ``inputs`` is committed to, if any.
+
+    A jitted call returns arrays committed to a device when one of its inputs is (weights restored
+    from a checkpoint are), and JAX compiles a program again for arguments placed differently. The
+    measurements carry ``_start``'s outputs from call to call: placed as ``_measure`` will return
+    them, every measurement runs the first one's compiled program (else the second compiled again).
+    """
+    for x in jax.tree.leaves(inputs):
+        if isinstance(x, jax.Array) and x.committed and len(x.devices()) == 1:
+            return jax.device_put(carried, next(iter(x.devices())))
+    return carried
+
+
 @partial(jax.jit, static_argnames=("eval_games",))
 def _remeasure(k_eval, state, params: env.PCGParams, eval_games: int):
     """Each episode's final skill played ``eval_games`` times: ``float32[n]``."""
@@ -165,6 +179,7 @@ def generate(key: jax.Array, policy, params: env.PCGParams, *, policy_params=Non
         ``float32[n, K]`` (its style goal; the start skill unless ``params.goal_axis``).
     """
     t, (k_start, k_loop, k_eval), obs, state = _start(key, params, jnp.asarray(targets, jnp.float32), episodes)
+    obs, state = _placed_like((obs, state), (policy_params, params, episode_params))
     measured, go = 0, True  # every episode measures its start (max_edits >= 0)
     while go:
         obs, state, go = _measure(jnp.int32(measured), obs, state, k_start, k_loop, policy, policy_params, params,

@@ -1,6 +1,8 @@
 """The lane layout (``raidjax.lanes``): its helpers equal the jnp operations they replace, and the
 step's ``vmap`` rule (arena axis last) gives the state one arena's step gives, bit for bit, whether
-the content is shared or per arena, and under a second ``vmap``."""
+the content is shared or per arena, for one arena alone, and under a second ``vmap``. This is the
+check of the step's whole lane program (``raidjax.phases.advance_lanes``); test_lane_functions.py
+checks each of its parts."""
 
 from __future__ import annotations
 
@@ -227,6 +229,10 @@ def test_vmapped_step_equals_single_steps_bit_for_bit():
         # from the single arena's by an ulp.
         for x, y in zip(jax.tree.leaves(mine[0]), jax.tree.leaves(single[i][0]), strict=True):
             np.testing.assert_allclose(np.asarray(x, np.float32), np.asarray(y, np.float32), rtol=0, atol=1e-6)
+    # One arena as one lane (a batch of 1): the lane program must not drop or broadcast its lane axis.
+    alone = jax.device_get(jax.jit(jax.vmap(raidjax.step))(keys[:1], stacked(states[:1]), actions[:1],
+                                                           stacked(contents[:1])))
+    assert_equal(jax.tree.map(lambda x: x[0], alone)[1:], single[0][1:])
     # One content shared by every arena (params unbatched: it broadcasts along the lanes).
     shared = jax.jit(jax.vmap(raidjax.step, (0, 0, 0, None)))(keys, stacked(states), actions, contents[0])
     per_arena = jax.jit(jax.vmap(raidjax.step))(keys, stacked(states), actions, stacked([contents[0]] * 4))

@@ -37,10 +37,17 @@ STEP = jax.jit(raidjax.step)
 # so that player mechanics can be measured in isolation. Its HP and defences stay the reference.
 PASSIVE_BOSS = {"move_speed": 0.0, "skill1.range": 1.0, "skill2.range": 1.0}
 
+# A tiny ``raidjax train mapoca`` run: its config file's fields and the command's arguments. The
+# fault-injection chain (test_faults_mapoca) and b1_switches' trained-run test (test_benchmark1)
+# train the same programs, so whichever runs second reads them from the compilation cache.
+TINY_MAPOCA = {"n_arenas": 4, "n_steps": 8, "n_minibatches": 2, "update_epochs": 1, "hidden": 8, "layers": 1,
+               "heads": 1, "updates_per_chunk": 1, "checkpoint_every": 1}
+TINY_MAPOCA_ARGS = ["--total-steps", "128", "--skill-range", "9", "--seeds", "2"]
+
 __all__ = [
     "ACTION_HEURISTIC", "BOSS", "CAST_1", "CLEAN1", "DT", "DRAG", "KEY", "NOOP", "P", "PASSIVE_BOSS", "RESET",
-    "STEP", "TICK", "T_ROLL", "acts", "events", "make", "rollout", "run", "scenario",
-    "series",
+    "STEP", "TICK", "TINY_MAPOCA", "TINY_MAPOCA_ARGS", "T_ROLL", "acts", "events", "make", "rollout", "run",
+    "scenario", "series",
 ]
 
 

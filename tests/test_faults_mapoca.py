@@ -13,24 +13,22 @@ import jax
 import numpy as np
 import pytest
 from fault_inject import flip, largest_state_file, run, same_run, steps, updates
+from helpers import TINY_MAPOCA, TINY_MAPOCA_ARGS
 
 from trainers import checkpoint, mapoca_cli
 from trainers.runfolder import LOCK_NAME
-
-TINY = {"n_arenas": 4, "n_steps": 8, "n_minibatches": 2, "update_epochs": 1, "hidden": 8, "layers": 1,
-        "heads": 1, "updates_per_chunk": 1, "checkpoint_every": 1}
 
 
 @pytest.fixture(scope="module")
 def tiny_config(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("cfg") / "tiny.json"
-    path.write_text(json.dumps(TINY))
+    path.write_text(json.dumps(TINY_MAPOCA))
     return path
 
 
 def test_mapoca_survives_a_chain_of_kills_and_a_corrupted_checkpoint(tmp_path, tiny_config, capsys):
     # No evaluation (a function of the final weights, compared below); test_refusals... runs one.
-    args = ["--config", str(tiny_config), "--total-steps", "128", "--skill-range", "9", "--eval-games", "0"]
+    args = ["--config", str(tiny_config), *TINY_MAPOCA_ARGS, "--eval-games", "0"]
     ref, out = tmp_path / "uninterrupted", tmp_path / "faulty"
     mapoca_cli.main([*args, "--out", str(ref)])  # in-process: the same programs, shared by the cache
     last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
@@ -140,7 +138,7 @@ def cli(module, argv, capsys) -> tuple[int, str]:
 
 def test_refusals_are_one_line_and_touch_nothing(tmp_path, tiny_config, capsys):
     # The chain's training (128 steps): its programs are read from the compilation cache.
-    args = ["--config", str(tiny_config), "--total-steps", "128", "--skill-range", "9", "--eval-games", "4"]
+    args = ["--config", str(tiny_config), *TINY_MAPOCA_ARGS, "--eval-games", "4"]
     out = tmp_path / "run"
     first = mapoca_cli.main([*args, "--out", str(out)])
     assert 0.0 <= first["win_rate"] <= 1.0 and len(str(first["win_rate"])) <= 8  # 0.75, not 0.75000001

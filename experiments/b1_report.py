@@ -22,7 +22,7 @@ import numpy as np  # noqa: E402
 from raidjax.env import BOSS_SPAWN, PLAYER_SPACING, PLAYER_SPAWN_Y  # noqa: E402
 from raidjax.io import atomic_write  # noqa: E402
 from raidjax.types import HALF_ARENA  # noqa: E402
-from trainers.runfolder import RunFolder, markdown_table  # noqa: E402
+from trainers.runfolder import RunFolder, locked, markdown_table  # noqa: E402
 
 # GAME.md §9 (the paper's Table "Win rate between MARL and Heuristic agent", 500 games)
 PAPER_WIN_RATE = {"PT-RD": (0.000, 0.002, 0.029, 0.058), "PT-HR": (0.089, 0.371, 0.698, 0.830),
@@ -218,14 +218,16 @@ def save_heatmaps(rf: RunFolder) -> None:
 
 def redraw_heatmaps(run_dir) -> Path:
     """Redraw ``run_dir/figures/heatmaps.png`` (atomically) from the run's ``heatmaps.npz`` and
-    ``config.json`` alone, without a RunFolder (no training or playtest). Returns the PNG's path."""
+    ``config.json`` alone, without a RunFolder (no training or playtest), under the folder's lock
+    (``trainers.runfolder.locked``: refused while a Benchmark 1 job works there). Returns the PNG's path."""
     run_dir = Path(run_dir)
-    games = _heatmap_games(json.loads((run_dir / "config.json").read_text()))
-    fig, _ = heatmap_figure(**load_heatmaps(run_dir / "heatmaps.npz"), games=games)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=HEATMAP_DPI, bbox_inches="tight")
-    plt.close(fig)
-    return atomic_write(run_dir / "figures" / "heatmaps.png", buf.getvalue())
+    with locked(run_dir):
+        games = _heatmap_games(json.loads((run_dir / "config.json").read_text()))
+        fig, _ = heatmap_figure(**load_heatmaps(run_dir / "heatmaps.npz"), games=games)
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=HEATMAP_DPI, bbox_inches="tight")
+        plt.close(fig)
+        return atomic_write(run_dir / "figures" / "heatmaps.png", buf.getvalue())
 
 
 def training_figure(rf: RunFolder) -> None:

@@ -10,10 +10,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from trainers import runfolder
-from trainers.runfolder import RunFolder, RunFolderError
+from trainers.runfolder import RunFolder, RunFolderError, locked
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -111,6 +112,27 @@ def test_a_folder_in_use_by_another_process_is_refused_until_that_process_ends(t
     child = other_process(out)  # the with block released it
     assert child.said == "holding"
     child.communicate("")
+
+
+def test_a_redraw_is_refused_while_another_process_works_in_the_folder(tmp_path):
+    """``locked``: a job that writes into a run folder without a RunFolder (``b1_report``'s heatmap
+    redraw) is refused in one line while another process holds the folder, and runs once it ends."""
+    from experiments import b1_report
+
+    out = tmp_path / "run"
+    RunFolder(out, {"steps": 8}).close()
+    np.savez(out / "heatmaps.npz", maps=np.full((1, 1, 3, 24, 24), 1 / 24**2), agents=np.asarray(["A"]),
+             ranges=np.asarray([5.0]))
+    child = other_process(out)
+    assert child.said == "holding"
+    with pytest.raises(RunFolderError, match=rf"{out} is in use by process {child.pid} on "):
+        b1_report.redraw_heatmaps(out)
+    assert not (out / "figures").exists()
+    child.kill()
+    child.wait()
+    with RunFolder(out, {"steps": 8}, resume=True), locked(out):  # this process's own folder: shared
+        pass
+    assert b1_report.redraw_heatmaps(out).is_file()
 
 
 def test_a_refusal_before_the_lock_makes_no_lock_file(tmp_path):

@@ -37,6 +37,7 @@ system without locks) the run says so in its log and goes on unlocked.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -44,7 +45,7 @@ import os
 import socket
 import time
 import weakref
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -139,6 +140,18 @@ def _unlock(key: tuple[int, int] | None) -> None:
     _HELD[key][1] -= 1
     if _HELD[key][1] == 0:
         os.close(_HELD.pop(key)[0])
+
+
+@contextlib.contextmanager
+def locked(folder: str | Path) -> Iterator[None]:
+    """Hold the run lock of ``folder`` (an existing run folder) for a job that writes into it without
+    a ``RunFolder``, such as a redraw of its figures. Raises ``RunFolderError`` naming the holder
+    while another process works in the folder; this process's own ``RunFolder`` shares it."""
+    key = _lock(Path(folder))
+    try:
+        yield
+    finally:
+        _unlock(key)
 
 
 SEED_MAX = 2**31 - 1  # a --seed's largest value, as raidjax.calibrate's and render's (offsets stay well in range)

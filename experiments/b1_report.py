@@ -221,6 +221,9 @@ def redraw_heatmaps(run_dir) -> Path:
     ``config.json`` alone, without a RunFolder (no training or playtest), under the folder's lock
     (``trainers.runfolder.locked``: refused while a Benchmark 1 job works there). Returns the PNG's path."""
     run_dir = Path(run_dir)
+    if not (run_dir / "heatmaps.npz").is_file() or not (run_dir / "config.json").is_file():
+        raise ValueError(f"run_dir: value {str(run_dir)!r} holds no heatmaps.npz and config.json; allowed: a "
+                         "Benchmark 1 run folder whose heatmaps stage has finished")
     with locked(run_dir):
         games = _heatmap_games(json.loads((run_dir / "config.json").read_text()))
         fig, _ = heatmap_figure(**load_heatmaps(run_dir / "heatmaps.npz"), games=games)
@@ -278,11 +281,7 @@ def cli(argv=None) -> None:
     args = ap.parse_args(argv)
 
     def main():
-        run = Path(args.run_dir)
-        if not (run / "heatmaps.npz").is_file() or not (run / "config.json").is_file():
-            raise ValueError(f"run_dir: value {args.run_dir!r} holds no heatmaps.npz and config.json; allowed: a "
-                             "Benchmark 1 run folder whose heatmaps stage has finished")
-        print(redraw_heatmaps(run))
+        print(redraw_heatmaps(args.run_dir))
 
     run_cli(main)
 

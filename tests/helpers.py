@@ -41,7 +41,7 @@ PASSIVE_BOSS = {"move_speed": 0.0, "skill1.range": 1.0, "skill2.range": 1.0}
 # fault-injection chain (test_faults_mapoca) and b1_switches' trained-run test (test_benchmark1)
 # train the same programs, so whichever runs second reads them from the compilation cache.
 TINY_MAPOCA = {"n_arenas": 4, "n_steps": 8, "n_minibatches": 2, "update_epochs": 1, "hidden": 8, "layers": 1,
-               "heads": 1, "updates_per_chunk": 1, "checkpoint_every": 1}
+               "heads": 1, "updates_per_chunk": 1, "checkpoint_every": 1, "senses": "reference"}
 TINY_MAPOCA_ARGS = ["--total-steps", "128", "--skill-range", "9", "--seeds", "2"]
 
 __all__ = [

@@ -193,7 +193,7 @@ def test_switches_play_a_trained_mapoca_run_folder(tmp_path):
     rows = [json.loads(s) for s in out.read_text().splitlines()]
     assert sorted((r["switch"], r["agent"], r.get("seed"), r["range"]) for r in rows) == sorted(
         (s, a, i, 9.0) for s in b1_switches.SWITCHES for a, i in (("MA-POCA", 0), ("MA-POCA", 1), ("PT-HR", None)))
-    assert all(r["senses"] == "raidjax" and r["greedy"] for r in rows if r["agent"] == "MA-POCA")
+    assert all(r["senses"] == "reference" and r["greedy"] for r in rows if r["agent"] == "MA-POCA")
     (run_dir / "result.json").unlink()
     with pytest.raises(ValueError, match="has not finished"):
         b1_switches.evaluate(run_dir, 20)

@@ -1,8 +1,8 @@
 """The lane layout (``raidjax.lanes``): its helpers equal the jnp operations they replace, and the
 step's ``vmap`` rule (arena axis last) gives the state one arena's step gives, bit for bit, whether
 the content is shared or per arena, for one arena alone, and under a second ``vmap``. This is the
-check of the step's whole lane program (``raidjax.phases.advance_lanes``); test_lane_functions.py
-checks each of its parts."""
+check of the step's whole lane program (``raidjax.phases.advance_lanes``, in the schedule the
+backend runs); test_lane_functions.py checks each of its parts in the plain schedule."""
 
 from __future__ import annotations
 

@@ -130,9 +130,14 @@ def test_a_redraw_is_refused_while_another_process_works_in_the_folder(tmp_path)
     assert not (out / "figures").exists()
     child.kill()
     child.wait()
-    with RunFolder(out, {"steps": 8}, resume=True), locked(out):  # this process's own folder: shared
-        pass
-    assert b1_report.redraw_heatmaps(out).is_file()
+    with RunFolder(out, {"steps": 8}, resume=True):  # this process's own folder: shared
+        with locked(out):
+            pass
+        assert other_process(out).said.startswith("refused")  # leaving locked kept the RunFolder's lock
+        assert b1_report.redraw_heatmaps(out).is_file()
+    child = other_process(out)  # and the last use released it
+    assert child.said == "holding"
+    child.communicate("")
 
 
 def test_a_refusal_before_the_lock_makes_no_lock_file(tmp_path):

@@ -32,7 +32,8 @@ while it works in the folder, and a second process that opens the folder is refu
 process that holds it. The operating system releases the lock when that process ends, however it
 ends (a killed run leaves no stale lock). Within one process the folder may be opened again (a
 notebook resuming its own run). Where nothing can lock (no ``fcntl``, as on Windows, or a file
-system without locks) the run says so in its log and goes on unlocked.
+system without locks) the run says so in its log and goes on unlocked. A job that writes into a
+run folder without a ``RunFolder`` (a redraw of its figures) holds the same lock with ``locked``.
 """
 
 from __future__ import annotations
@@ -146,7 +147,8 @@ def _unlock(key: tuple[int, int] | None) -> None:
 def locked(folder: str | Path) -> Iterator[None]:
     """Hold the run lock of ``folder`` (an existing run folder) for a job that writes into it without
     a ``RunFolder``, such as a redraw of its figures. Raises ``RunFolderError`` naming the holder
-    while another process works in the folder; this process's own ``RunFolder`` shares it."""
+    while another process works in the folder; this process's own ``RunFolder`` shares it. Where
+    nothing can lock (see above) it holds nothing and says nothing: the job goes on unlocked."""
     key = _lock(Path(folder))
     try:
         yield

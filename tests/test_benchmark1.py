@@ -177,23 +177,24 @@ def test_switches_play_the_table_teams_and_pt_hr_by_chain_position(run, tmp_path
 
 def test_switches_play_a_trained_mapoca_run_folder(tmp_path):
     """``b1_switches`` also takes a finished ``raidjax train mapoca`` folder: its seeds are the teams,
-    played with the run's senses and, under ``deterministic_eval``, greedily. The run is
-    test_faults_mapoca's (``TINY_MAPOCA``; its programs shared through the compilation cache)."""
+    played with the run's senses, sampled as its ``deterministic_eval`` (False) says (test_mapoca
+    shows ``load_policy`` reading it). The run is test_faults_mapoca's (``TINY_MAPOCA``; the
+    compilation cache shares its training, and its playing with the table teams' test above)."""
     from helpers import TINY_MAPOCA, TINY_MAPOCA_ARGS
 
     from experiments import b1_switches
     from trainers import mapoca_cli
 
     cfg = tmp_path / "tiny.json"
-    cfg.write_text(json.dumps({**TINY_MAPOCA, "deterministic_eval": True}))  # evaluation only: the same training
+    cfg.write_text(json.dumps(TINY_MAPOCA))
     run_dir = tmp_path / "run"
     mapoca_cli.main(["--config", str(cfg), *TINY_MAPOCA_ARGS, "--eval-games", "0", "--out", str(run_dir)])
     out = tmp_path / "switches.jsonl"
     b1_switches.main([str(run_dir), "--games", "20", "--out", str(out)])
     rows = [json.loads(s) for s in out.read_text().splitlines()]
     assert sorted((r["switch"], r["agent"], r.get("seed"), r["range"]) for r in rows) == sorted(
-        (s, a, i, 9.0) for s in b1_switches.SWITCHES for a, i in (("MA-POCA", 0), ("MA-POCA", 1), ("PT-HR", None)))
-    assert all(r["senses"] == "reference" and r["greedy"] for r in rows if r["agent"] == "MA-POCA")
+        (s, a, i, 9.0) for s in b1_switches.SWITCHES for a, i in [*(("MA-POCA", i) for i in range(4)), ("PT-HR", None)])
+    assert all(r["senses"] == "reference" and not r["greedy"] for r in rows if r["agent"] == "MA-POCA")
     (run_dir / "result.json").unlink()
     with pytest.raises(ValueError, match="has not finished"):
         b1_switches.evaluate(run_dir, 20)

@@ -32,7 +32,7 @@ from trainers.returns import advantages, explained_variance, lambda_returns
 
 TINY = PRESETS["mapoca"]["cpu"].replace(n_arenas=4, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1,
                               heads=2, updates_per_chunk=2, total_steps=4 * 8 * 4, checkpoint_every=2,
-                              eval_games=4, skill_ranges=(9.0, 13.0))
+                              eval_games=4, skill_ranges=(9.0, 13.0), deterministic_eval=True)
 
 
 @pytest.fixture(scope="module")
@@ -305,6 +305,7 @@ def test_end_to_end_train_resume_and_checkpoint(tmp_path, capsys):
     # seed's weights share one policy, so playtesting them compiles once.
     policy, w1 = load_policy(tmp_path, seed=1, deterministic=True)
     policy0, w0 = load_policy(tmp_path, seed=0, deterministic=True)
+    assert load_policy(tmp_path, seed=0)[0] == policy0  # by default, the run's deterministic_eval (True here)
     assert policy == policy0 and hash(policy) == hash(policy0)
     first = lambda tree: jax.tree.map(lambda x: x[0, 0], tree)  # seed 0, arena 0
     obs, state = first(r0.obs), first(r0.env_state)

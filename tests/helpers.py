@@ -38,10 +38,11 @@ STEP = jax.jit(raidjax.step)
 PASSIVE_BOSS = {"move_speed": 0.0, "skill1.range": 1.0, "skill2.range": 1.0}
 
 # A tiny ``raidjax train mapoca`` run: its config file's fields and the command's arguments. The
-# fault-injection chain (test_faults_mapoca) and b1_switches' trained-run test (test_benchmark1)
-# train the same programs, so whichever runs second reads them from the compilation cache; its 4
-# seeds play as Benchmark 1's smoke table teams do (4 teams of the same network, sampled), so
-# b1_switches compiles one program per rule switch for both.
+# fault-injection chain (test_faults_mapoca), b1_switches' trained-run test (test_benchmark1) and
+# test_sharding's one-device half train the same programs, so only the first to run compiles them
+# (the others read them from the compilation cache). Its 4 seeds play as Benchmark 1's smoke table
+# teams do (4 teams of the same network, sampled): b1_switches compiles one program per rule switch
+# for both.
 TINY_MAPOCA = {"n_arenas": 4, "n_steps": 8, "n_minibatches": 2, "update_epochs": 1, "hidden": 8, "layers": 1,
                "heads": 1, "updates_per_chunk": 1, "checkpoint_every": 1, "senses": "reference"}
 TINY_MAPOCA_ARGS = ["--total-steps", "128", "--skill-range", "9", "--seeds", "4"]

@@ -13,7 +13,10 @@ decision, outside the sub-steps: its own program (``vmap(raidjax.observe)``) is 
 A decision moves its state into and out of the lane layout once, whatever its sub-step count, so a
 second program runs two sub-steps in a row: what the second adds is a sub-step's own work
 (``substep_own_*``), the rest of the one-sub-step program is the decision's once-only work
-(``decision_once_*``), and ``substep_in_decision_*`` shares it among ``--substeps`` sub-steps.
+(``decision_once_*``), and ``substep_in_decision_*`` shares it among ``--substeps`` sub-steps. In
+those two programs XLA fuses the moves into the layout into their readers, as copies inside the
+sub-step's conditionals; ``substep_on_lanes_*`` is a sub-step on inputs already in the lane layout,
+as the decision's loop runs it.
 
     python benchmarks/step_cost.py --arenas 4096 [--substeps 5|1] [--rules reference|clean]
         [--observation raidjax|reference]
@@ -22,6 +25,7 @@ second program runs two sub-steps in a row: what the second adds is a sub-step's
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import re
 
@@ -83,11 +87,21 @@ def main() -> None:
         return jax.jit(jax.vmap(run)).lower(keys, state, actions, batch).compile()
 
     sub, two = program_of(lane_substep), program_of(lane_two_substeps)
+    # The sub-step as the decision's loop runs it: its inputs already in the lane layout (the loop
+    # carries them so). Here no move into the layout is fused into the sub-step's conditionals as a
+    # copy of each operand it reads, so this is the sub-step's work alone.
+    to_lanes = jax.jit(lambda tree: jax.tree.map(lambda x: jnp.moveaxis(x, 0, -1), tree))
+    lane_args = to_lanes((jax.vmap(dice_seeds)(keys), state.replace(memory=None), actions, batch,
+                          jax.vmap(damage.effect_sources)(batch)))
+    # The schedule ``lanes.batched`` picks: XLA:CPU's on the CPU, the plain program elsewhere.
+    fast = jax.default_backend() == "cpu"
+    on_lanes = jax.jit(functools.partial(lane_substep, fast=fast)).lower(*lane_args).compile()
     sources = jax.jit(jax.vmap(damage.effect_sources)).lower(batch).compile()
     table = jax.jit(jax.vmap(damage.effect_table)).lower(batch).compile()
     dec = jax.jit(jax.vmap(raidjax.step)).lower(keys, state, actions, batch).compile()
     obs = jax.jit(jax.vmap(lambda s, p: raidjax.observe(s, p, damage.effect_table(p)))).lower(state, batch).compile()
     sub_cost, two_cost, sources_cost, table_cost, obs_cost = cost(sub), cost(two), cost(sources), cost(table), cost(obs)
+    lanes_cost = cost(on_lanes)
     n = args.arenas
     # A sub-step inside a decision: what a second sub-step in a row adds (its own work), plus the
     # decision's once-only work (the moves into and out of the lane layout, the sources' layout)
@@ -102,6 +116,8 @@ def main() -> None:
         "substep_bytes_per_arena": round((sub_cost["bytes"] - sources_cost["bytes"]) / n),
         "substep_flops_per_arena": round((sub_cost["flops"] - sources_cost["flops"]) / n),
         "substep_own_bytes_per_arena": round(own["bytes"] / n),
+        "substep_on_lanes_bytes_per_arena": round(lanes_cost["bytes"] / n),
+        "substep_on_lanes_flops_per_arena": round(lanes_cost["flops"] / n),
         "decision_once_bytes_per_arena": round(once["bytes"] / n),
         "substep_in_decision_bytes_per_arena": round((own["bytes"] + once["bytes"] / args.substeps) / n),
         "substep_in_decision_flops_per_arena": round((own["flops"] + once["flops"] / args.substeps) / n),

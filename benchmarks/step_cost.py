@@ -16,7 +16,7 @@ second program runs two sub-steps in a row: what the second adds is a sub-step's
 (``decision_once_*``), and ``substep_in_decision_*`` shares it among ``--substeps`` sub-steps. In
 those two programs XLA fuses the moves into the layout into their readers, as copies inside the
 sub-step's conditionals; ``substep_on_lanes_*`` is a sub-step on inputs already in the lane layout,
-as the decision's loop runs it.
+its state updated in place, as the decision's loop runs it.
 
     python benchmarks/step_cost.py --arenas 4096 [--substeps 5|1] [--rules reference|clean]
         [--observation raidjax|reference]
@@ -88,14 +88,15 @@ def main() -> None:
 
     sub, two = program_of(lane_substep), program_of(lane_two_substeps)
     # The sub-step as the decision's loop runs it: its inputs already in the lane layout (the loop
-    # carries them so). Here no move into the layout is fused into the sub-step's conditionals as a
-    # copy of each operand it reads, so this is the sub-step's work alone.
+    # carries them so) and its state updated in place (donated, as the loop's carry is). No move into
+    # the layout is then fused into the conditionals, nor the pool copied before its blocks are
+    # written: the sub-step's work alone.
     to_lanes = jax.jit(lambda tree: jax.tree.map(lambda x: jnp.moveaxis(x, 0, -1), tree))
     lane_args = to_lanes((jax.vmap(dice_seeds)(keys), state.replace(memory=None), actions, batch,
                           jax.vmap(damage.effect_sources)(batch)))
     # The schedule ``lanes.batched`` picks: XLA:CPU's on the CPU, the plain program elsewhere.
     fast = jax.default_backend() == "cpu"
-    on_lanes = jax.jit(functools.partial(lane_substep, fast=fast)).lower(*lane_args).compile()
+    on_lanes = jax.jit(functools.partial(lane_substep, fast=fast), donate_argnums=1).lower(*lane_args).compile()
     sources = jax.jit(jax.vmap(damage.effect_sources)).lower(batch).compile()
     table = jax.jit(jax.vmap(damage.effect_table)).lower(batch).compile()
     dec = jax.jit(jax.vmap(raidjax.step)).lower(keys, state, actions, batch).compile()

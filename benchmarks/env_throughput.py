@@ -3,7 +3,8 @@
 Compiles ahead of time, times with ``block_until_ready`` and prints one JSON object with the
 machine, the batch size, compile seconds and environment decisions per second (one decision =
 every player acts once). Also times ``raidjax.playtest`` (PT-HR, reference content, range 9,
-games played to completion, ``--games-per-arena`` games in a row per arena).
+games played to completion, ``--games-per-arena`` games in a row per arena; the best of
+``--playtest-repeats`` calls, each on other games).
 
     python benchmarks/env_throughput.py --arenas 4096 --steps 200
 """
@@ -66,6 +67,8 @@ def main() -> None:
     ap.add_argument("--playtest-games", type=int, default=4096)
     ap.add_argument("--rules", default="reference", choices=sorted(raidjax.RULE_SETS))
     ap.add_argument("--substeps", type=int, default=5, choices=(1, 5))
+    ap.add_argument("--playtest-repeats", type=whole_number_arg(1), default=3,
+                    help="timed playtest calls (the best counts)")
     ap.add_argument("--games-per-arena", type=whole_number_arg(1), default=None,
                     help="playtest games each arena plays in a row (default: auto_games_per_arena, up to 10)")
     args = ap.parse_args()
@@ -97,9 +100,15 @@ def main() -> None:
                            games_per_arena=k).compile()
     pt_compile_s = time.perf_counter() - t0
     jax.block_until_ready(pt_compiled(jax.random.key(1), params))
-    t0 = time.perf_counter()
-    res = jax.block_until_ready(pt_compiled(jax.random.key(2), params))
-    pt_s = time.perf_counter() - t0
+    # Each call plays other games (its own key); one call's time moves by up to 30 % on a shared
+    # machine, so the best of several counts, as for the rollouts.
+    pt_times, results = [], []
+    for i in range(args.playtest_repeats):
+        t0 = time.perf_counter()
+        results.append(jax.block_until_ready(pt_compiled(jax.random.key(2 + i), params)))
+        pt_times.append(time.perf_counter() - t0)
+    best_call = min(range(len(pt_times)), key=pt_times.__getitem__)
+    pt_s, res = pt_times[best_call], results[best_call]
 
     print(json.dumps({
         "benchmark": "env_throughput",
@@ -114,11 +123,12 @@ def main() -> None:
         "seconds_per_rollout": [round(t, 3) for t in times],
         "playtest": {"policy": "heuristic", "skill_range": 9.0, "games": args.playtest_games, "games_per_arena": k,
                      "compile_s": round(pt_compile_s, 2), "seconds": round(pt_s, 3),
+                     "seconds_each": [round(t, 3) for t in pt_times],
                      # Measured games; under chained rules each arena's one warm-up game is in the time.
                      "games_per_s": round(args.playtest_games / pt_s),
                      "warm_up_game": params.config.chains_episodes,
                      "measured_decisions_per_s": round(float(res["length"].sum()) / pt_s),
-                     "win_rate": round(float(raidjax.win_rate(res)), 3)},
+                     "win_rate": round(float(raidjax.win_rate(results[0])), 3)},  # key 2's games
     }))
 
 

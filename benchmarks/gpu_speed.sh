@@ -22,6 +22,6 @@ run() {  # run SECONDS ARGS...: one benchmark, JSON lines to the jsonl, everythi
 sizes=${ARENAS:-4096 65536 262144}
 run 200 benchmarks/vs_smax.py --arenas $sizes --steps 64 --repeats 2 --rows smax-3m raidjax-per-arena
 for n in $sizes; do
-    run 100 benchmarks/env_throughput.py --arenas "$n" --steps 64 --repeats 2 --playtest-games "$n"
+    run 100 benchmarks/env_throughput.py --arenas "$n" --steps 64 --repeats 2 --playtest-repeats 2 --playtest-games "$n"
 done
-run 60 benchmarks/step_cost.py --arenas "${sizes%% *}"
+run 120 benchmarks/step_cost.py --arenas "${sizes%% *}"

@@ -10,7 +10,8 @@ Reward (GAME.md §8, PROTOCOLS.md §12). ``raidjax.step`` pays player ``i``: ``r
 the damage its hits did to the boss this step, ``w`` = the boss died this step). MA-POCA
 trains every agent on its own + its teammates' individual rewards + the group reward, i.e. on
 the one team reward ``r = 0.01 sum_i d_i + 1.0 w = sum_i r_i - (P - 1) w`` (the win bonus is a
-group reward, paid once, not once per player). Every agent therefore shares one λ-return G_t.
+group reward, paid once, not once per player). Where no player dies mid-game every agent has the
+same λ-return G_t (``episode_ends`` ``"terminal"`` and ``"win_bootstrapped"``: always).
 
 Returns (``trainers.returns``). How a game's end reaches the λ-returns is ``Config.episode_ends``:
 under ``"reference"`` (the default, as ML-Agents 0.28 POCA trains the reference build) a win and a

@@ -171,7 +171,7 @@ def minibatch_flops(trainer, runner) -> float:
     gradients, no Adam), compiled alone: the networks hold no loops, so the count is complete."""
     import jax.numpy as jnp
 
-    from trainers.mapoca import Batch, loss_fn
+    from trainers.poca_loss import Batch, loss_fn
 
     cfg = trainer.config
     p = len(cfg.players)

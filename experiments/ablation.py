@@ -7,7 +7,8 @@
     python -m experiments.ablation --out runs/paper_r13 --tables-of runs/paper_r13_s0 runs/paper_r13_s1 ...
 
 Every variant is the `cpu` preset on the reference senses with ``VARIANTS``' overrides, but ``paper``,
-the `paper` preset at the paper's budget (the same protocol, the same games). It trains
+the `paper` preset at the paper's budget (the same protocol, the same games), and ``paper_stale``, the
+same with the reference's asynchronous data approximated (``Config.stale_phases``). It trains
 ``len(ranges) x seeds`` runs (default ranges 9 and 13, 3 seeds, 1.5 M decisions each) as one
 vmapped program, run ``i`` from ``fold_in(PRNGKey(seed), i)`` in every variant, each on the
 reference content at its range (as Benchmark 1's table runs), then plays every team by the one
@@ -62,22 +63,30 @@ VARIANTS = {
     # otherwise (about 10 h per run on a 2-core CPU; docs/results/speed.md, "The learner").
     "paper": ("the `paper` preset: every row, the reference buffer (11 arenas x 256 decisions), batch and "
               "2 x 256 networks, 16.7 M decisions per run", None),
+    # The same with the reference's asynchronous data approximated (row 17, trainers.windows): its
+    # 280 arenas hand in a 256-step trajectory about every 10 decisions of the buffer's, so a window
+    # spans about 25 updates; 32 phases (8 decisions per arena and update) is the nearest divisor of 256.
+    "paper_stale": ("the `paper` preset with the reference's asynchronous data approximated: 32 groups of 11 "
+                    "arenas, each update training on the 256-decision window the last 32 updates' policies "
+                    "acted (row 17)", None),
 }
 # Variants that are not the reference trainer's rows added in turn (the rows before them add up).
-NOT_ROWS = ("lr_annealed", "paper")
+NOT_ROWS = ("lr_annealed", "paper", "paper_stale")
+STALE_PHASES = 32  # paper_stale's Config.stale_phases
 CPU_BUDGET = 1_500_000  # decisions per run of the variants on the cpu preset
 
 
 def variant_config(name: str, total_steps: int | None = None) -> Config:
     """The `cpu` preset on the reference senses with variant ``name``'s overrides (every variant sets
     ``episode_ends``, so the preset's own choice, made from this ablation, does not enter), or for
-    ``"paper"`` the `paper` preset. ``total_steps``: decisions per run (default: 1.5 M on the cpu
-    preset, the paper's 16.7 M for ``"paper"``)."""
-    if name == "paper":
+    ``"paper"`` the `paper` preset (``"paper_stale"``: with ``STALE_PHASES``). ``total_steps``: decisions
+    per run (default: 1.5 M on the cpu preset, the paper's 16.7 M for ``"paper"`` and ``"paper_stale"``)."""
+    if name in ("paper", "paper_stale"):
         paper = PRESETS["mapoca"]["paper"]
         # 2 updates per chunk: a checkpoint every 20 updates (loop.train's 10 chunks), about 13 min
         # of 6 runs on 2 cores, instead of 100 updates at the preset's 10 per chunk.
-        return paper.replace(total_steps=total_steps or paper.total_steps, eval_games=0, updates_per_chunk=2)
+        return paper.replace(total_steps=total_steps or paper.total_steps, eval_games=0, updates_per_chunk=2,
+                             stale_phases=STALE_PHASES if name == "paper_stale" else 1)
     return PRESETS["mapoca"]["cpu"].replace(senses="reference", total_steps=total_steps or CPU_BUDGET, eval_games=0,
                                             **VARIANTS[name][1])
 

@@ -18,16 +18,9 @@ from raidjax import team_reward
 from raidjax.types import WIN
 from trainers import checkpoint
 from trainers.config import PRESETS, Config, load_config
-from trainers.mapoca import (
-    Batch,
-    begin_episodes,
-    load_policy,
-    loss_fn,
-    make_train,
-    make_trainer,
-    training_content,
-)
+from trainers.mapoca import begin_episodes, load_policy, make_train, make_trainer, training_content
 from trainers.networks import Actor, Critic, masked_logits
+from trainers.poca_loss import Batch, loss_fn
 from trainers.returns import advantages, explained_variance, lambda_returns
 
 TINY = PRESETS["mapoca"]["cpu"].replace(n_arenas=4, n_steps=8, n_minibatches=2, update_epochs=1, hidden=8, layers=1,

@@ -12,8 +12,9 @@ import pytest
 
 import raidjax
 from trainers.config import PRESETS
-from trainers.mapoca import Batch, loss_fn, make_trainer
+from trainers.mapoca import make_trainer
 from trainers.networks import Actor, Critic
+from trainers.poca_loss import Batch, loss_fn
 from trainers.reference_networks import ReferenceActor, ReferenceCritic
 
 

@@ -12,8 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from trainers.mapoca import Batch, loss_fn
 from trainers.networks import Actor, Critic
+from trainers.poca_loss import Batch, loss_fn
 from trainers.returns import game_returns, lambda_returns, last_seen
 
 GAMMA, LAM = 0.9, 0.8

@@ -100,6 +100,11 @@ class Config:
         checkpoint_every: checkpoint every this many updates (rounded up to whole chunks).
         eval_games: games of the final evaluation (and of PT-HR on the same content).
         deterministic_eval: evaluate the greedy (argmax) policy instead of sampling.
+        stale_phases: ``K``; above 1, the reference trainer's asynchronous data approximated
+            (``trainers.windows``): ``K`` groups of ``n_arenas`` arenas each act ``n_steps / K``
+            decisions per update, and an update trains on the one group whose ``n_steps``-decision
+            window it completes, acted by the last ``K`` updates' policies. 1: every update's
+            rollout is acted by its own policy.
         senses: what the players observe and how they act (``raidjax.with_senses``):
             ``"raidjax"`` (raidjax's observation, 10 masked actions) or ``"reference"`` (the
             reference player's 204-float observation and 8 unmasked actions; the ``paper`` preset).
@@ -139,6 +144,7 @@ class Config:
     network: str = "raidjax"
     minibatch_rows: str = "decisions"
     episode_ends: str = "reference"
+    stale_phases: int = 1
     # run length, checkpoints and the final evaluation
     total_steps: int = 1_000_000
     updates_per_chunk: int = 10
@@ -165,7 +171,7 @@ class Config:
     def __post_init__(self):
         check_fields(self, {
             **dict.fromkeys(("n_arenas", "n_steps", "n_minibatches", "update_epochs", "hidden", "layers", "heads",
-                             "redraw_every", "updates_per_chunk", "checkpoint_every"), (1, None)),
+                             "redraw_every", "updates_per_chunk", "checkpoint_every", "stale_phases"), (1, None)),
             "total_steps": (1, MAX_STEPS),
             "eval_games": (0, None), "lr": (0, None, "> 0"), "adam_eps": (0, None, "> 0"),
             "max_grad_norm": (0, None), "gamma": (0, 1), "lam": (0, 1), "clip_eps": (0, None, "> 0"),
@@ -194,6 +200,8 @@ class Config:
             what = "agent experiences per update (n_arenas * n_steps * players)" if agents else \
                 "decisions per update (n_arenas * n_steps)"
             raise ValueError(f"n_minibatches: value {self.n_minibatches}; allowed: a divisor of the {rows} {what}")
+        if self.n_steps % self.stale_phases:
+            raise ValueError(f"stale_phases: value {self.stale_phases}; allowed: a divisor of n_steps = {self.n_steps}")
         if self.hidden % self.heads:
             raise ValueError(f"heads: value {self.heads} must divide hidden = {self.hidden}")
         if self.network == "reference" and self.heads != 4:

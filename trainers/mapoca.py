@@ -36,11 +36,12 @@ import raidjax
 from raidjax import pcg, validate
 from raidjax.env import team_reward
 from raidjax.types import LOSS, WIN, Observation, Params, State
-from trainers import checkpoint
+from trainers import checkpoint, windows
 from trainers.config import Config
 from trainers.curriculum import begin_episodes, draw_skills, next_draws, range_table, training_content, with_drawn
 from trainers.gradients import clip_by_global_norm, global_norm
 from trainers.networks import Actor, Critic, sample_actions
+from trainers.poca_loss import Batch, loss_fn
 from trainers.reference_networks import ReferenceActor, ReferenceCritic
 from trainers.returns import advantages, explained_variance, game_returns, last_seen
 
@@ -64,6 +65,28 @@ class Runner:
 
 
 @struct.dataclass
+class StaleRunner(Runner):
+    """A ``Runner`` with ``Config.stale_phases = K > 1`` (``trainers.windows``): ``N = K * n_arenas``
+    arenas and every group's window of acted steps."""
+
+    window: Any = None  # Step arrays [n_steps, K, n_arenas, ...]
+
+
+@struct.dataclass
+class Step:
+    """One decision of ``N`` arenas as acted, before the critic values it (a ``Transition``'s inputs)."""
+
+    obs: Observation  # [N, P, ...] observation acted on
+    action: jax.Array  # int32[N, P]
+    logp: jax.Array  # float32[N, P] log-probability under the acting policy
+    final: Observation  # [N, P, ...] the observation after the step, in the same episode
+    reward: jax.Array  # float32[N] team reward
+    done: jax.Array  # bool[N]
+    won: jax.Array  # bool[N]
+    lost: jax.Array  # bool[N]
+
+
+@struct.dataclass
 class Transition:
     """One rollout step of ``N`` arenas (a leading ``T`` axis once stacked)."""
 
@@ -82,93 +105,13 @@ class Transition:
     lost: jax.Array  # bool[N] ... in a loss
 
 
-class Batch(NamedTuple):
-    """Flattened training samples (leading axis = decisions) for ``loss_fn``."""
-
-    obs: Observation  # [B, P, ...]
-    action: jax.Array  # int32[B, P]
-    logp: jax.Array  # float32[B, P]
-    alive: jax.Array  # bool[B, P]
-    value: jax.Array  # float32[B] old V
-    baseline: jax.Array  # float32[B, P] old b
-    returns: jax.Array  # float32[B, P] λ-returns G_i (every column the group's unless episode_ends="reference")
-    advantage: jax.Array  # float32[B, P] normalised G - b (0 where not alive)
-
-
-def loss_fn(params: dict, batch: Batch, actor: Actor, critic: Critic, clip_eps: float, ent_coef,
-            value_rows: str = "decisions", agent: jax.Array | None = None):
-    """MA-POCA loss ``L = L_pi + 0.5 (L_V + 0.5 L_b) - β H`` on one minibatch.
-
-    L_pi: PPO clipped surrogate; L_V / L_b: clipped squared regression of V / b_i onto G_i (max of
-    the clipped and unclipped errors); H: entropy of the masked categorical. Policy, baseline
-    and entropy terms average over the agents that acted; L_V over decisions (``value_rows``
-    ``"decisions"``, onto the group's return) or over the agents that acted (``"agents"``, onto each
-    agent's return, as ML-Agents' buffer rows are agent experiences; ``episode_ends="reference"``).
-
-    Args:
-        params: ``{"actor": ..., "critic": ...}`` network weights (the differentiated argument).
-        batch: ``[M, P, ...]`` decisions (fields as ``Batch``).
-        actor, critic: the flax modules of ``params`` (``make_networks``).
-        clip_eps: PPO ratio clip ε, also the half-width of the value and baseline clips.
-        ent_coef: entropy coefficient β (a float or ``float32[]``; traced when annealed).
-        value_rows: ``"decisions"`` or ``"agents"`` (above; forced to ``"agents"`` when ``agent`` is given).
-        agent: ``None`` (every player of each decision is a sample) or ``int32[M]``: row ``r`` is
-            the experience of player ``agent[r]`` in decision ``r`` only (``Config.minibatch_rows
-            = "agents"``, ML-Agents' rows); the value loss is then over rows.
-
-    Returns:
-        ``(loss: float32[], aux: dict of float32[])``.
-    """
-    if agent is None:
-        logits = actor.apply(params["actor"], batch.obs)
-        value, baseline = critic.apply(params["critic"], batch.obs, batch.action)
-        action, old_logp, adv, alive, returns = batch.action, batch.logp, batch.advantage, batch.alive, batch.returns
-        old_baseline = batch.baseline
-    else:
-        rows = jnp.arange(agent.shape[0])
-        pick = lambda x: x[rows, agent]
-        logits = actor.apply(params["actor"], jax.tree.map(pick, batch.obs))
-        value, baseline = critic.apply(params["critic"], batch.obs, batch.action, agent)
-        action, old_logp, adv, alive, returns, old_baseline = map(
-            pick, (batch.action, batch.logp, batch.advantage, batch.alive, batch.returns, batch.baseline))
-        value_rows = "agents"
-    logp_all = jax.nn.log_softmax(logits)
-    logp = jnp.take_along_axis(logp_all, action[..., None], axis=-1)[..., 0]
-    m = alive.astype(jnp.float32)
-    n = jnp.maximum(m.sum(), 1.0)
-    ratio = jnp.exp(logp - old_logp)
-    surrogate = jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - clip_eps, 1 + clip_eps) * adv)
-    l_pi = -jnp.sum(surrogate * m) / n
-    probs = jnp.exp(logp_all)
-    mask = batch.obs.action_mask if agent is None else pick(batch.obs.action_mask)
-    ent = -jnp.sum(jnp.where(mask, probs * logp_all, 0.0), axis=-1)
-    entropy = jnp.sum(ent * m) / n
-
-    def clipped_sq(new, old, target):
-        clipped = old + jnp.clip(new - old, -clip_eps, clip_eps)
-        return jnp.maximum(jnp.square(new - target), jnp.square(clipped - target))
-
-    if value_rows == "agents":
-        per_row = lambda x: x if agent is not None else x[..., None]
-        l_v = jnp.sum(clipped_sq(per_row(value), per_row(batch.value), returns) * m) / n
-    else:  # every column holds the group's return
-        l_v = jnp.mean(clipped_sq(value, batch.value, returns[..., 0]))
-    l_b = jnp.sum(clipped_sq(baseline, old_baseline, returns) * m) / n
-    loss = l_pi + 0.5 * (l_v + 0.5 * l_b) - ent_coef * entropy
-    aux = {
-        "loss": loss, "policy_loss": l_pi, "value_loss": l_v, "baseline_loss": l_b, "entropy": entropy,
-        "approx_kl": jnp.sum(((ratio - 1) - (logp - old_logp)) * m) / n,
-        "clip_frac": jnp.sum((jnp.abs(ratio - 1) > clip_eps) * m) / n,
-    }
-    return loss, aux
-
-
 class Trainer(NamedTuple):
     """The pieces of one configured trainer (all pure; vmap them over seeds).
 
     init(key) -> Runner; update(runner) -> (runner, metrics); chunk(runner) -> (runner, metrics
     summed/averaged over ``updates_per_chunk`` updates); train(key) -> (runner, per-chunk
-    metrics ``[num_chunks]``).
+    metrics ``[num_chunks]``); collect(runner) -> (runner, Transition ``[n_steps, n_arenas]``, episode
+    sums ``[steps]``): the rollout an update trains on.
     """
 
     config: Config
@@ -178,6 +121,7 @@ class Trainer(NamedTuple):
     update: Any
     chunk: Any
     train: Any
+    collect: Any
 
 
 EPISODE_KEYS = ("episodes", "return_sum", "wins", "draws", "length_sum")
@@ -221,6 +165,8 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     multi_range = (multi_range or cfg.content_box) and not fixed_content
     actor, critic = make_networks(cfg)
     n, t_len = cfg.n_arenas, cfg.n_steps
+    phases = cfg.stale_phases
+    n_env, seg = n * phases, t_len // phases  # arenas stepped; decisions per arena and update
     grad_steps = cfg.num_updates * cfg.update_epochs * cfg.n_minibatches
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
     clip = [clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
@@ -238,34 +184,35 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         content = base if content is None else training_content(cfg, content)
         range_set = default_set if range_set is None else range_set
         k_a, k_c, k_env, k_rng, k_run = jax.random.split(key, 5)
-        skills = draw_skills(k_rng, cfg, range_set, n)
-        obs, state = jax.vmap(raidjax.reset)(jax.random.split(k_env, n), env_params_of(content, skills))
+        skills = draw_skills(k_rng, cfg, range_set, n_env)
+        obs, state = jax.vmap(raidjax.reset)(jax.random.split(k_env, n_env), env_params_of(content, skills))
         obs0 = jax.tree.map(lambda x: x[0], obs)
         params = {"actor": actor.init(k_a, obs0),
                   "critic": critic.init(k_c, obs0, jnp.zeros(obs0.alive.shape, jnp.int32))}
-        zf = jnp.zeros(n, jnp.float32)
-        zi = jnp.zeros(n, jnp.int32)
-        return Runner(params, tx.init(params), state, obs, content, range_set, skills, zi, zf, zi, k_run,
-                      jnp.int32(0))
+        zf = jnp.zeros(n_env, jnp.float32)
+        zi = jnp.zeros(n_env, jnp.int32)
+        fields = (params, tx.init(params), state, obs, content, range_set, skills, zi, zf, zi, k_run, jnp.int32(0))
+        if phases == 1:
+            return Runner(*fields)
+        runner = StaleRunner(*fields, window=windows.empty(jax.eval_shape(acted_segment, Runner(*fields))[1], phases))
+        # The windows start staggered: the K - 1 segments before update 0, with the initial policy.
+        return jax.lax.fori_loop(1 - phases, 0, lambda u, r: stale_segment(r, u)[0], runner)
 
-    def rollout_step(runner: Runner, _):
+    def act(runner: Runner):
+        """``(runner, Step, episode sums)`` of one decision of every arena, acted by ``runner.params``."""
         key, k_act, k_env, k_rng = jax.random.split(runner.key, 4)
-        p, obs = runner.params, runner.obs
-        action, logp = sample_actions(k_act, actor.apply(p["actor"], obs), obs.alive)
-        value, baseline = critic.apply(p["critic"], obs, action)
+        obs = runner.obs
+        action, logp = sample_actions(k_act, actor.apply(runner.params["actor"], obs), obs.alive)
         # step_autoreset's keys: each arena's key splits into the step's and the next episode's.
-        keys = jax.vmap(jax.random.split)(jax.random.split(k_env, n))
+        keys = jax.vmap(jax.random.split)(jax.random.split(k_env, n_env))
         content = env_params_of(runner.content, runner.skills)
         final, state, _, done, info = step_all(keys[:, 0], runner.env_state, action, content)
-        next_value = critic.apply(p["critic"], final, method="value")
-        death_value = (critic.apply(p["critic"], last_seen(obs, final), obs.alive, method="value")
-                       if cfg.episode_ends == "reference" else next_value)
         # The auto-reset, once: every redraw_every-th finished episode of an arena draws its next
         # skill, then the new episodes begin and are observed under the content they play.
         episode, redrawn = next_draws(runner.episode, done, cfg.redraw_every)
         skills = runner.skills
         if multi_range:
-            skills = jnp.where(redrawn[:, None], draw_skills(k_rng, cfg, runner.range_set, n), skills)
+            skills = jnp.where(redrawn[:, None], draw_skills(k_rng, cfg, runner.range_set, n_env), skills)
             content = env_params_of(runner.content, skills)
         state, nxt = begin_episodes(keys[:, 1], jax.random.fold_in(k_rng, 1), cfg.fresh_starts, done, state, content)
         reward = team_reward(info, done)
@@ -273,14 +220,51 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         won = done & (info["result"] == WIN)
         ep = {"episodes": done.sum(), "return_sum": jnp.sum(ep_ret * done), "wins": won.sum(),
               "draws": jnp.sum(done & info["truncated"]), "length_sum": jnp.sum(ep_len * done)}
-        tr = Transition(obs, action, logp, obs.alive, value, baseline, next_value, death_value, final.alive, reward,
-                        done, won, done & (info["result"] == LOSS))
+        step = Step(obs, action, logp, final, reward, done, won, done & (info["result"] == LOSS))
         runner = runner.replace(env_state=state, obs=nxt, skills=skills, episode=episode, key=key,
                                 ep_return=jnp.where(done, 0.0, ep_ret), ep_length=jnp.where(done, 0, ep_len))
-        return runner, (tr, ep)
+        return runner, step, ep
+
+    def valued(p: dict, step: Step) -> Transition:
+        """``step`` valued by the critic ``p["critic"]``."""
+        obs, final = step.obs, step.final
+        value, baseline = critic.apply(p["critic"], obs, step.action)
+        next_value = critic.apply(p["critic"], final, method="value")
+        death_value = (critic.apply(p["critic"], last_seen(obs, final), obs.alive, method="value")
+                       if cfg.episode_ends == "reference" else next_value)
+        return Transition(obs, step.action, step.logp, obs.alive, value, baseline, next_value, death_value,
+                          final.alive, step.reward, step.done, step.won, step.lost)
+
+    def rollout_step(runner: Runner, _):
+        p = runner.params
+        runner, step, ep = act(runner)
+        return runner, (valued(p, step), ep)
+
+    def acted_segment(runner: Runner):
+        """``(runner, Step [seg, N], episode sums [seg])``: every arena's next ``seg`` decisions."""
+        def one(r, _):
+            r, step, ep = act(r)
+            return r, (step, ep)
+
+        runner, (steps, ep) = jax.lax.scan(one, runner, None, seg)
+        return runner, steps, ep
+
+    def stale_segment(runner: StaleRunner, u):
+        """Every arena's segment of update ``u`` written into its group's window (``trainers.windows``)."""
+        runner, steps, ep = acted_segment(runner)
+        return runner.replace(window=windows.write(runner.window, steps, u, phases)), ep
+
+    def collect(runner: Runner):
+        if phases == 1:
+            runner, (traj, ep) = jax.lax.scan(rollout_step, runner, None, t_len)
+            return runner, traj, ep
+        runner, ep = stale_segment(runner, runner.update)
+        # Valued when it completes, as ML-Agents values a trajectory when it arrives.
+        window = windows.completed(runner.window, runner.update, phases)
+        return runner, jax.vmap(lambda s: valued(runner.params, s))(window), ep
 
     def update(runner: Runner):
-        runner, (traj, ep) = jax.lax.scan(rollout_step, runner, None, t_len)
+        runner, traj, ep = collect(runner)
         returns = game_returns(cfg.episode_ends, traj.reward, traj.next_value, traj.death_value, traj.done, traj.won,
                                traj.lost, traj.alive, traj.next_alive, cfg.gamma, cfg.lam)
         adv = advantages(returns, traj.baseline, traj.alive)
@@ -350,7 +334,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
         runner = init(key)
         return jax.lax.scan(lambda r, _: chunk(r), runner, None, cfg.num_chunks)
 
-    return Trainer(cfg, actor, critic, init, update, chunk, train)
+    return Trainer(cfg, actor, critic, init, update, chunk, train, collect)
 
 
 def make_train(config: Config, base_params: Params | None = None):

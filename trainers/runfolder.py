@@ -65,7 +65,7 @@ class RunFolderError(ValueError):
 # the Config default is the reference trainer's "reference").
 ADDED_SETTINGS = {"senses": "raidjax", "fresh_starts": 0.0, "random_spawns": False,
                   "episode_ends": "terminal", "network": "raidjax",
-                  "minibatch_rows": "decisions"}
+                  "minibatch_rows": "decisions", "stale_phases": 1}
 # Settings no longer saved, ignored where an older run saved them: the scales' fast_compile was false
 # but for smoke runs (XLA's optimisation level 0: other float rounding, in runs whose numbers are not
 # read), so a real run resumes exactly as it would have.

@@ -63,9 +63,10 @@ VARIANTS = {
     # otherwise (about 10 h per run on a 2-core CPU; docs/results/speed.md, "The learner").
     "paper": ("the `paper` preset: every row, the reference buffer (11 arenas x 256 decisions), batch and "
               "2 x 256 networks, 16.7 M decisions per run", None),
-    # The same with the reference's asynchronous data approximated (row 17, trainers.windows): its
-    # 280 arenas hand in a 256-step trajectory about every 10 decisions of the buffer's, so a window
-    # spans about 25 updates; 32 phases (8 decisions per arena and update) is the nearest divisor of 256.
+    # The same with the reference's asynchronous data approximated (row 17, trainers.windows): each of
+    # its 280 arenas advances about 10 decisions per update (2 816 / 280), so a 256-step trajectory
+    # spans about 25 updates (an estimate from the configs); 32 phases (8 decisions per arena and
+    # update) is the divisor of 256 nearest it. A run's window is about 430 MB (memory, checkpoints).
     "paper_stale": ("the `paper` preset with the reference's asynchronous data approximated: 32 groups of 11 "
                     "arenas, each update training on the 256-decision window the last 32 updates' policies "
                     "acted (row 17)", None),

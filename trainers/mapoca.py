@@ -111,7 +111,7 @@ class Trainer(NamedTuple):
     init(key) -> Runner; update(runner) -> (runner, metrics); chunk(runner) -> (runner, metrics
     summed/averaged over ``updates_per_chunk`` updates); train(key) -> (runner, per-chunk
     metrics ``[num_chunks]``); collect(runner) -> (runner, Transition ``[n_steps, n_arenas]``, episode
-    sums ``[steps]``): the rollout an update trains on.
+    sums ``[n_steps / stale_phases]``): the rollout an update trains on.
     """
 
     config: Config

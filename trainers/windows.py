@@ -13,8 +13,14 @@ segments, one per update; one group's window completes per update and is what th
 on: the same ``n_arenas x n_steps`` decisions per update as before, but each window was acted by the
 policies of the last ``K`` updates (its log-probabilities as stored then), and its values are the
 critic's at the update, as ML-Agents estimates them when a trajectory arrives. The windows start
-staggered: before the first update each group is ``K - 1`` segments of its first window ahead of the
-next (``init`` plays them with the initial policy; they are not counted in ``total_steps``).
+staggered, each group one segment ahead of the next: ``init`` plays ``K - 1`` segments of every
+arena with the initial policy, after which group 1 holds ``K - 1`` segments of its first window,
+group 2 ``K - 2``, ..., group 0 none. About half of those ``(K - 1) x n_arenas x n_steps`` decisions
+are trained on (the rest belong to no window) and none are counted in ``total_steps``.
+
+A window holds the observations acted on and those after each step: for the ``paper`` preset with
+``K = 32`` about 430 MB per run, in memory and in every checkpoint (the ``paper`` preset's runner:
+about 11 MB).
 
 Window arrays are ``[n_steps, K, n_arenas, ...]``; a segment of every arena is ``[n_steps / K, K *
 n_arenas, ...]`` (group ``g`` is arenas ``g * n_arenas`` to ``(g + 1) * n_arenas - 1``).

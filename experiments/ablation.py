@@ -64,16 +64,18 @@ VARIANTS = {
     "paper": ("the `paper` preset: every row, the reference buffer (11 arenas x 256 decisions), batch and "
               "2 x 256 networks, 16.7 M decisions per run", None),
     # The same with the reference's asynchronous data approximated (row 17, trainers.windows): each of
-    # its 280 arenas advances about 10 decisions per update (2 816 / 280), so a 256-step trajectory
-    # spans about 25 updates (an estimate from the configs); 32 phases (8 decisions per arena and
-    # update) is the divisor of 256 nearest it. A run's window is about 430 MB (memory, checkpoints).
-    "paper_stale": ("the `paper` preset with the reference's asynchronous data approximated: 32 groups of 11 "
-                    "arenas, each update training on the 256-decision window the last 32 updates' policies "
+    # its 280 arenas advances about 10 decisions per update (2 816 / 280), and a trajectory arrives at
+    # its episode's end (games last about 100 decisions: docs/results/speed.md) or at 256 steps, so a
+    # row trains about 0-10 updates after it was acted, 5 on average (an estimate from the configs).
+    # 8 phases (32 decisions per arena and update; rows 0-7 updates old, 3.5 on average) is the
+    # divisor of 256 nearest it (16: 0-15, 7.5). A run's windows are about 110 MB (memory, checkpoints).
+    "paper_stale": ("the `paper` preset with the reference's asynchronous data approximated: 8 groups of 11 "
+                    "arenas, each update training on the 256-decision window the last 8 updates' policies "
                     "acted (row 17)", None),
 }
 # Variants that are not the reference trainer's rows added in turn (the rows before them add up).
 NOT_ROWS = ("lr_annealed", "paper", "paper_stale")
-STALE_PHASES = 32  # paper_stale's Config.stale_phases
+STALE_PHASES = 8  # paper_stale's Config.stale_phases
 CPU_BUDGET = 1_500_000  # decisions per run of the variants on the cpu preset
 
 

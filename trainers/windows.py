@@ -18,9 +18,9 @@ arena with the initial policy, after which group 1 holds ``K - 1`` segments of i
 group 2 ``K - 2``, ..., group 0 none. About half of those ``(K - 1) x n_arenas x n_steps`` decisions
 are trained on (the rest belong to no window) and none are counted in ``total_steps``.
 
-A window holds the observations acted on and those after each step: for the ``paper`` preset with
-``K = 32`` about 430 MB per run, in memory and in every checkpoint (the ``paper`` preset's runner:
-about 11 MB).
+A window holds the observations acted on and those after each step: for the ``paper`` preset about
+13 MB per phase and run (``K = 8``: about 110 MB), in memory and in every checkpoint (the ``paper``
+preset's runner: about 11 MB).
 
 Window arrays are ``[n_steps, K, n_arenas, ...]``; a segment of every arena is ``[n_steps / K, K *
 n_arenas, ...]`` (group ``g`` is arenas ``g * n_arenas`` to ``(g + 1) * n_arenas - 1``).

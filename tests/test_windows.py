@@ -23,7 +23,7 @@ def test_each_update_completes_one_groups_window_in_time_order():
     window = windows.empty(jax.ShapeDtypeStruct((seg, k * n), jnp.int32), k)
     assert window.shape == (t, k, n)
     for u in range(1 - k, 9):  # the k - 1 segments before update 0 (init's), then updates 0..8
-        window = windows.write(window, segment(u), jnp.int32(u), k)
+        window = windows.write(window, segment(u), jnp.int32(u))
         if u >= 0:
             g = (u + 1) % k  # one group a update, each in turn: its decisions of updates u - k + 1 .. u
             want = ((u - k + 1) * seg + np.arange(t)[:, None]) * 100 + g * n + np.arange(n)[None, :]

@@ -252,7 +252,7 @@ def make_trainer(config: Config, base_params: Params | None = None, redraw_range
     def stale_segment(runner: StaleRunner, u):
         """Every arena's segment of update ``u`` written into its group's window (``trainers.windows``)."""
         runner, steps, ep = acted_segment(runner)
-        return runner.replace(window=windows.write(runner.window, steps, u, phases)), ep
+        return runner.replace(window=windows.write(runner.window, steps, u)), ep
 
     def collect(runner: Runner):
         if phases == 1:

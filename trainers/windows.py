@@ -39,9 +39,9 @@ def offsets(update: jax.Array, phases: int, seg: int) -> jax.Array:
     return jnp.mod(update - jnp.arange(phases), phases) * seg
 
 
-def write(window, segment, update: jax.Array, phases: int):
+def write(window, segment, update: jax.Array):
     """``window`` (arrays ``[T, K, N, ...]``) with every group's segment (arrays ``[T / K, K * N, ...]``)
-    written at its offset for ``update`` (``offsets``)."""
+    written at its offset for ``update`` (``offsets``; ``K`` is the window's second axis)."""
     def one(w, s):
         t, k, n = w.shape[:3]
         groups = s.reshape((t // k, k, n) + s.shape[2:])

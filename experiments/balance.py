@@ -91,7 +91,8 @@ SCALES = {
                    ppo=dict(n_arenas=4, n_steps=4, total_steps=32, update_epochs=1, n_minibatches=2, hidden=8, layers=1,
                             n_games=4, max_edits=4),
                    chunk=1, episodes=1, gen_games=4, max_edits=3, eval_games=4),
-    # About 40 min on 2 CPU cores (docs/results/balancing.md): a 2 M-decision tester and 3 specialists
+    # About 1 h on 2 CPU cores (40 min 33 s on 2026-11-24 with that day's lighter MA-POCA preset,
+    # docs/results/balancing.md; today's trains about half as many decisions/s): a 2 M-decision tester and 3 specialists
     # with the same budget, generators of 2 048 edits at 20 games per measurement, 6 episodes per target.
     "cpu": Scale(tester=dict(total_steps=2_000_000), heldout=3, grid=3, grid_games=40,
                  ppo=dict(n_arenas=16, n_steps=8, total_steps=2048, n_games=20), chunk=2,
@@ -272,7 +273,7 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(prog="python -m experiments.balance", formatter_class=HelpFormatter,
                                  description="The integrated balancing loop: a learned playtester inside the "
                                  "skill generator, against the scripted PT-HR (PROTOCOLS.md §13).")
-    add_run_arguments(ap, SCALES, "budgets (smoke: a few minutes, for the plumbing; cpu: about 40 min on 2 cores; "
+    add_run_arguments(ap, SCALES, "budgets (smoke: a few minutes, for the plumbing; cpu: about 1 h on 2 cores; "
                       "paper: the paper's budgets, for an accelerator)")
     ap.add_argument("--players", nargs="+", default=["mage"] * 3,
                     help="the team's class presets, e.g. warrior mage priest (default: three mages)")

@@ -106,7 +106,7 @@ SCALES = {
                    heatmap_ranges=(5.0, 13.0), checkpoint_chunks=1,
                    trainer=(("n_arenas", 16), ("n_steps", 8), ("n_minibatches", 2), ("update_epochs", 1),
                             ("hidden", 8), ("layers", 1), ("heads", 1), ("updates_per_chunk", 1))),
-    # about 1 h 50 min on 2 CPU cores (docs/results/benchmark1.md): the cpu preset, 2 seeds, populations of 2,
+    # about 2 h 15 min on 2 CPU cores (docs/results/benchmark1.md): the cpu preset, 2 seeds, populations of 2,
     # 1.5 M decisions per run
     "cpu": Scale("cpu", total_steps=1_500_000, seeds=2, population=2, games=500, heatmap_games=500,
                  heatmap_ranges=(5.0, 9.0, 13.0, 17.0), checkpoint_chunks=5),

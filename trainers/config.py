@@ -274,8 +274,8 @@ _MAPOCA_PRESETS = {
     # Chosen by a measured sweep on the reference senses (docs/results/benchmark1.md, "Choosing the
     # cpu preset"): 256 arenas x 32 decisions per update amortise the step on a 2-core CPU; a 2 x 64
     # network with teammate-only attention (projectiles join the self features); 3 epochs of 32
-    # minibatches of 256 decisions at a constant lr 3e-4 (about 11x the Adam steps per decision of
-    # the earlier 2 x 8 at 1e-3, closer to the reference trainer's); entropy bonus 0.003, which lets
+    # minibatches of 256 decisions at a constant lr 3e-4 (6x the Adam steps per decision of the
+    # earlier 2 epochs x 8 minibatches at 1e-3, closer to the reference trainer's); entropy bonus 0.003, which lets
     # the sampled policy sharpen (0.01 kept it near-uniform over the reference's 8 unmasked actions).
     # A win is terminal here (episode_ends "terminal", not the reference trainer's "reference"): at this
     # budget the ablation (docs/results/ablation.md; reference senses, ranges 9 and 13, 3 seeds, 1.5 M

@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Carry an unfinished training run from one work session to the next, where the machine (and
+# everything git does not hold) may be replaced in between. Not part of the library.
+#
+#   carry/carry.sh pack RUNS CELL     RUNS/CELL -> carry/CELL.tar: each variant's newest checkpoint,
+#                                     config.json, log.txt and train/ (the trainer is paused while
+#                                     the archive is written, so the checkpoint is whole)
+#   carry/carry.sh unpack CELL RUNS   carry/CELL.tar -> RUNS/CELL, to continue with --resume
+#
+# A checkpoint is ~12 MB (922 122 weights and Adam's two moments); only the newest one travels.
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+case "${1:-}" in
+  pack)
+    runs="$(cd "$2" && pwd)"; cell="$3"; src="$runs/$cell"; out="$here/$cell.tar"
+    [ -d "$src" ] || { echo "carry: no run folder $src" >&2; exit 2; }
+    pids="$(pgrep -f -- "--out ($src|$2/$cell)( |\$)" || true)"
+    resume() { [ -z "$pids" ] || kill -CONT $pids; }
+    trap resume EXIT
+    [ -z "$pids" ] || kill -STOP $pids
+    paths=()
+    for v in "$src"/*/; do
+      v="${v%/}"; name="$(basename "$v")"
+      newest="$(ls "$v/checkpoints" 2>/dev/null | grep -E '^[0-9]+$' | sort -n | tail -1 || true)"
+      [ -n "$newest" ] || { echo "carry: $v has no checkpoint" >&2; exit 2; }
+      for f in config.json log.txt train "checkpoints/$newest"; do
+        [ -e "$v/$f" ] && paths+=("$cell/$name/$f")
+      done
+      echo "carry: $cell/$name at update $newest"
+    done
+    tar cf "$out.tmp" -C "$runs" "${paths[@]}"
+    mv "$out.tmp" "$out"
+    ls -l "$out"
+    ;;
+  unpack)
+    cell="$2"; runs="$3"; tarball="$here/$cell.tar"
+    [ -f "$tarball" ] || { echo "carry: no $tarball" >&2; exit 2; }
+    if [ -e "$runs/$cell" ]; then
+      echo "carry: $runs/$cell exists; resume it as it is, or move it aside first" >&2; exit 2
+    fi
+    mkdir -p "$runs"
+    tar xf "$tarball" -C "$runs"
+    echo "carry: $runs/$cell restored; continue it with the same command and --resume"
+    ;;
+  *)
+    sed -n '2,10p' "$0"; exit 2 ;;
+esac

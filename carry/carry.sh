@@ -10,7 +10,9 @@
 # A checkpoint is ~12 MB (922 122 weights and Adam's two moments); only the newest one travels.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
-case "${1:-}" in
+usage() { sed -n '2,10p' "$0" >&2; exit 2; }
+[ $# -eq 3 ] || usage
+case "$1" in
   pack)
     runs="$(cd "$2" && pwd)"; cell="$3"; src="$runs/$cell"; out="$here/$cell.tar"
     [ -d "$src" ] || { echo "carry: no run folder $src" >&2; exit 2; }
@@ -42,6 +44,5 @@ case "${1:-}" in
     tar xf "$tarball" -C "$runs"
     echo "carry: $runs/$cell restored; continue it with the same command and --resume"
     ;;
-  *)
-    sed -n '2,10p' "$0"; exit 2 ;;
+  *) usage ;;
 esac

@@ -6,11 +6,14 @@
 #                                     config.json, log.txt and train/ (the trainer is paused while
 #                                     the archive is written, so the checkpoint is whole)
 #   carry/carry.sh unpack CELL RUNS   carry/CELL.tar -> RUNS/CELL, to continue with --resume
+#   carry/carry.sh finish RUNS CELL   a finished cell (one variant, its summary.json written) ->
+#                                     docs/results/ablation/CELL/: summary, play rows, config, log
+#                                     and every 40th update's training row; git rm carry/CELL.tar
 #
 # A checkpoint is ~12 MB (922 122 weights and Adam's two moments); only the newest one travels.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
-usage() { sed -n '2,10p' "$0" >&2; exit 2; }
+usage() { sed -n '2,13p' "$0" >&2; exit 2; }
 [ $# -eq 3 ] || usage
 case "$1" in
   pack)
@@ -43,6 +46,20 @@ case "$1" in
     mkdir -p "$runs"
     tar xf "$tarball" -C "$runs"
     echo "carry: $runs/$cell restored; continue it with the same command and --resume"
+    ;;
+  finish)
+    runs="$2"; cell="$3"; variants=("$runs/$cell"/*/)
+    [ ${#variants[@]} -eq 1 ] && [ -d "${variants[0]}" ] || { echo "carry: $runs/$cell must hold one variant folder" >&2; exit 2; }
+    v="${variants[0]%/}"
+    [ -f "$v/summary.json" ] || { echo "carry: $v has no summary.json: the cell has not finished" >&2; exit 2; }
+    dest="$here/../docs/results/ablation/$cell"
+    mkdir -p "$dest"
+    cp "$v/summary.json" "$v/play.jsonl" "$v/config.json" "$v/log.txt" "$dest/"
+    # every 40th update (the header kept): the curve without 12 MB of rows
+    awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "update") u = i; print; next } $u % 40 == 0' \
+      "$v/train/metrics.csv" > "$dest/train_metrics.csv"
+    if git -C "$here" ls-files --error-unmatch "$cell.tar" > /dev/null 2>&1; then git -C "$here" rm -q "$cell.tar"; fi
+    echo "carry: $cell's artefacts in docs/results/ablation/$cell; commit them (and the removed carry/$cell.tar)"
     ;;
   *) usage ;;
 esac

@@ -7,13 +7,14 @@
 #                                     the archive is written, so the checkpoint is whole)
 #   carry/carry.sh unpack CELL RUNS   carry/CELL.tar -> RUNS/CELL, to continue with --resume
 #   carry/carry.sh finish RUNS CELL   a finished cell (one variant, its summary.json written) ->
-#                                     docs/results/ablation/CELL/: summary, play rows, config, log
-#                                     and every 40th update's training row; git rm carry/CELL.tar
+#                                     docs/results/ablation/CELL/: summary, play rows, config, the
+#                                     log every 200 updates, every 40th update's training row;
+#                                     git rm carry/CELL.tar
 #
 # A checkpoint is ~12 MB (922 122 weights and Adam's two moments); only the newest one travels.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
-usage() { sed -n '2,13p' "$0" >&2; exit 2; }
+usage() { sed -n '2,14p' "$0" >&2; exit 2; }
 [ $# -eq 3 ] || usage
 case "$1" in
   pack)
@@ -54,12 +55,18 @@ case "$1" in
     [ -f "$v/summary.json" ] || { echo "carry: $v has no summary.json: the cell has not finished" >&2; exit 2; }
     dest="$here/../docs/results/ablation/$cell"
     mkdir -p "$dest"
-    cp "$v/summary.json" "$v/play.jsonl" "$v/config.json" "$v/log.txt" "$dest/"
-    # every 40th update (the header kept): the curve without 12 MB of rows
+    cp "$v/summary.json" "$v/play.jsonl" "$v/config.json" "$dest/"
+    # the log's progress lines every 200 updates (one per 2-update chunk would be ~3 000 lines),
+    # every other line (starts, resumptions, compiles, stages) kept
+    awk 'match($0, /\] update [0-9]+\//) && substr($0, RSTART + 9, RLENGTH - 10) % 200 { next } { print }' \
+      "$v/log.txt" > "$dest/log.txt"
+    # every 40th update's training row, the header kept (the whole file is ~330 KB)
     awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "update") u = i; print; next } $u % 40 == 0' \
       "$v/train/metrics.csv" > "$dest/train_metrics.csv"
-    if git -C "$here" ls-files --error-unmatch "$cell.tar" > /dev/null 2>&1; then git -C "$here" rm -q "$cell.tar"; fi
-    echo "carry: $cell's artefacts in docs/results/ablation/$cell; commit them (and the removed carry/$cell.tar)"
+    # the archive is obsolete once the cell has finished, even if re-packed since its last commit
+    if git -C "$here" ls-files --error-unmatch "$cell.tar" > /dev/null 2>&1; then git -C "$here" rm -q -f "$cell.tar"; fi
+    echo "carry: $cell's artefacts in docs/results/ablation/$cell; put its figures on docs/results/ablation.md" \
+      "(and RESULTS.md), then commit them with the removed carry/$cell.tar"
     ;;
   *) usage ;;
 esac

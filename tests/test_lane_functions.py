@@ -157,8 +157,9 @@ def test_every_lane_function_is_recorded(recorded):
 
 
 # The step's whole lane program, the decision's loop of sub-steps: test_lanes.py checks it against
-# one arena's step (integers bit for bit, floats within 1e-6) at 4 lanes, 2 x 2 and 1, in the schedule the backend runs (on the
-# CPU the fast one); in the plain schedule test_transforms' shard_map test checks it at 2 lanes.
+# one arena's step (integers bit for bit, floats within 1e-6) at 4 lanes, 2 x 2 and 1, in the
+# schedule the backend runs (on the CPU the fast one); in the plain schedule test_transforms'
+# shard_map test checks it at 2 lanes.
 # Its sub-step and every part of that are checked here in the plain schedule at 0, 1 and 3 lanes.
 # Compiled once per lane count here, it cost 39 s of the suite.
 WHOLE_STEP = f"{phases.advance_lanes.__module__}.{phases.advance_lanes.__qualname__}"

@@ -157,8 +157,8 @@ def test_side_by_side_measurements_are_one_playtest_of_each_episode_s_own_games(
     p = pcg.make_pcg_params(n_games=8)
     keys = jax.random.split(jax.random.key(9), 3)
     skills = jnp.asarray([(20.0, 0.5, 0.5, 0.6), (5.0, 2.0, 1.0, 1.5), (12.0, 1.0, 0.3, 1.0)])
-    one = lambda k, s: pcg.play_outcomes(k, p.game, s, 8)  # noqa: E731 (as a user measures: the jitted playtest)
-    alone = np.stack([np.asarray(one(k, s)) for k, s in zip(keys, skills, strict=True)])
+    # Each measured alone, as a user measures (the jitted playtest the test above compiled).
+    alone = np.stack([np.asarray(pcg.play_outcomes(k, p.game, s, 8)) for k, s in zip(keys, skills, strict=True)])
     assert 0 < alone.mean() < 1  # wins and losses: the comparison can fail
     singles = []
     monkeypatch.setattr(pcg.measurement, "playtest", lambda *a, **k: singles.append(1) or raidjax.playtest(*a, **k))
